@@ -1,0 +1,3 @@
+from monovo_cli.cli import main
+
+main()

@@ -1,0 +1,188 @@
+"""Writers and readers of monovo's files: motion CSV, trajectory CSV, TUM (SPEC.md).
+
+Streaming rows are flushed one by one so an interrupted run keeps every whole row;
+final files are written to a temporary name in the same directory and renamed, so no
+half-written file ever carries a final name.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+import tempfile
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO
+
+import numpy as np
+
+from monovo_cli.errors import InputError, OutputError
+from monovo_cli.geometry import make_pose, matrix_from_quat, quat_from_matrix, so3_exp, so3_log
+
+MOTION_COLUMNS = ("frame", "tx", "ty", "tz", "rx", "ry", "rz", "msd", "iterations", "points",
+                  "status")
+STD_COLUMNS = ("std_tx", "std_ty", "std_tz", "std_rx", "std_ry", "std_rz")
+TRAJECTORY_COLUMNS = ("frame", "timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw")
+
+
+def fmt(x: float) -> str:
+    """A float as text: shortest round-trip repr, never 'nan'/'inf' (caller guarantees)."""
+    x = float(x)
+    if x == 0.0:
+        return "0"  # also folds -0.0
+    return repr(x)
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file in the same directory + rename."""
+    path = Path(path)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise OutputError(f"{path.parent}: cannot write here ({exc.strerror})") from None
+    try:
+        with os.fdopen(fd, "w", newline="") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+@dataclass(frozen=True)
+class MotionRow:
+    """One row of motion.csv: ``T_{k-1}_k`` of frame k, translation m, rotation rad."""
+
+    frame: int
+    prev_from_cur: np.ndarray  # 4x4
+    msd: float
+    iterations: int
+    points: int
+    status: str
+    std: np.ndarray | None = None  # (6,) std of (tx, ty, tz, rx, ry, rz), m and rad
+
+    def fields(self, with_std: bool) -> list[str]:
+        t = self.prev_from_cur[:3, 3]
+        r = np.degrees(so3_log(self.prev_from_cur[:3, :3]))
+        out = [str(self.frame), *(fmt(v) for v in t), *(fmt(v) for v in r), fmt(self.msd),
+               str(int(self.iterations)), str(int(self.points)), self.status]
+        if with_std:
+            s = self.std if self.std is not None else np.full(6, np.nan)
+            s = np.concatenate([s[:3], np.degrees(s[3:])])
+            out += [fmt(v) if math.isfinite(v) else "" for v in s]
+        return out
+
+
+class MotionWriter:
+    """Streams motion.csv rows to a text stream, header first, flushing every row."""
+
+    def __init__(self, stream: IO[str], *, with_std: bool = True) -> None:
+        self._stream = stream
+        self._with_std = with_std
+        cols = MOTION_COLUMNS + (STD_COLUMNS if with_std else ())
+        self._stream.write(",".join(cols) + "\n")
+        self._stream.flush()
+
+    def write(self, row: MotionRow) -> None:
+        self._stream.write(",".join(row.fields(self._with_std)) + "\n")
+        self._stream.flush()
+
+
+def trajectory_csv_text(frames: Sequence[int], timestamps: Sequence[float],
+                        world_from_cam: Sequence[np.ndarray]) -> str:
+    """trajectory.csv content: ``T_0_k`` per frame as translation + quaternion (qw >= 0)."""
+    buf = io.StringIO()
+    buf.write(",".join(TRAJECTORY_COLUMNS) + "\n")
+    for k, ts, T in zip(frames, timestamps, world_from_cam):
+        q = quat_from_matrix(T[:3, :3])
+        buf.write(",".join([str(k), fmt(ts), *(fmt(v) for v in T[:3, 3]),
+                            *(fmt(v) for v in q)]) + "\n")
+    return buf.getvalue()
+
+
+def tum_text(timestamps: Sequence[float], world_from_cam: Sequence[np.ndarray]) -> str:
+    """TUM trajectory: ``timestamp tx ty tz qx qy qz qw`` per line, single spaces."""
+    lines = []
+    for ts, T in zip(timestamps, world_from_cam):
+        q = quat_from_matrix(T[:3, :3])
+        lines.append(" ".join([fmt(ts), *(fmt(v) for v in T[:3, 3]), *(fmt(v) for v in q)]))
+    return "".join(line + "\n" for line in lines)
+
+
+def motion_csv_text(rows: Iterable[MotionRow], *, with_std: bool = False) -> str:
+    buf = io.StringIO()
+    w = MotionWriter(buf, with_std=with_std)
+    for r in rows:
+        w.write(r)
+    return buf.getvalue()
+
+
+def _floats(fields: Sequence[str], path: Path, lineno: int) -> list[float]:
+    try:
+        vals = [float(v) for v in fields]
+    except ValueError:
+        raise InputError(f"{path}: line {lineno}: expected numbers, got {' '.join(fields)!r}") from None
+    if not all(math.isfinite(v) for v in vals):
+        raise InputError(f"{path}: line {lineno}: non-finite value")
+    return vals
+
+
+def read_tum(path: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Read a TUM file: timestamps (N,) and ``world_from_cam`` poses (N, 4, 4)."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: cannot read TUM file ({exc})") from None
+    ts, poses = [], []
+    for i, line in enumerate(text.splitlines(), start=1):
+        line = line.strip()
+        if not line or line.startswith("#"):
+            continue
+        f = line.replace(",", " ").split()
+        if len(f) != 8:
+            raise InputError(f"{path}: line {i}: expected 8 numbers "
+                             f"(timestamp tx ty tz qx qy qz qw), got {len(f)}")
+        v = _floats(f, path, i)
+        q = np.array(v[4:8])
+        if np.linalg.norm(q) < 1e-6:
+            raise InputError(f"{path}: line {i}: zero quaternion")
+        ts.append(v[0])
+        poses.append(make_pose(matrix_from_quat(q), np.array(v[1:4])))
+    if not ts:
+        raise InputError(f"{path}: no poses in TUM file")
+    return np.array(ts), np.array(poses)
+
+
+def read_motion_csv(path: Path) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Read a motion CSV (SPEC columns first): frames (N,), ``prev_from_cur`` (N, 4, 4), statuses."""
+    path = Path(path)
+    try:
+        with open(path, newline="") as f:
+            rows = list(csv.reader(f))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: cannot read motion CSV ({exc})") from None
+    if not rows or [c.strip() for c in rows[0][:7]] != list(MOTION_COLUMNS[:7]):
+        raise InputError(f"{path}: expected a header starting with "
+                         f"{','.join(MOTION_COLUMNS[:7])}")
+    frames, poses, statuses = [], [], []
+    for i, r in enumerate(rows[1:], start=2):
+        if not r:
+            continue
+        if len(r) < 7:
+            raise InputError(f"{path}: line {i}: expected at least 7 fields, got {len(r)}")
+        v = _floats(r[:7], path, i)
+        if v[0] != int(v[0]):
+            raise InputError(f"{path}: line {i}: frame must be a whole number, got {r[0]!r}")
+        frames.append(int(v[0]))
+        poses.append(make_pose(so3_exp(np.radians(v[4:7])), np.array(v[1:4])))
+        statuses.append(r[10].strip() if len(r) > 10 else "ok")
+    return np.array(frames, dtype=int), np.array(poses).reshape(-1, 4, 4), statuses
