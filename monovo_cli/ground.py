@@ -1,0 +1,189 @@
+"""The planar ground model of section 10.2.5 and its observation points.
+
+The model is a rectangle of two triangles lying on the ground plane, expressed in the
+camera frame of the keyframe it was built on (x right, y down, z forward, metres). An
+observation point is a keyframe pixel inside the model's image with a Sobel gradient
+magnitude above ``threshold`` (the paper's delta_1), lifted onto the plane by
+intersecting its viewing ray with the plane; it carries its intensity and gradient.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from monovo_cli.errors import TrackingError
+from monovo_cli.geometry import PinholeCamera
+
+
+@dataclass(frozen=True)
+class Plane:
+    """The plane ``{X : normal . X = distance}`` in some camera frame.
+
+    ``normal`` (3,) is unit and points from the camera to the ground; ``distance`` > 0, m.
+    """
+
+    normal: np.ndarray
+    distance: float
+
+    def in_frame(self, b_from_a: np.ndarray) -> Plane:
+        """The same plane expressed in frame b, given it in frame a and the 4x4 ``b_from_a``."""
+        R, t = b_from_a[:3, :3], b_from_a[:3, 3]
+        n = R @ self.normal
+        return Plane(n, float(self.distance + n @ t))
+
+    def intersect(self, rays: np.ndarray) -> np.ndarray:
+        """Points (N, 3) where ``rays`` (N, 3) from the camera centre meet the plane.
+
+        Rays that miss the plane (parallel or behind) give NaN rows.
+        """
+        denom = rays @ self.normal
+        with np.errstate(divide="ignore", invalid="ignore"):
+            s = np.where(denom > 1e-9, self.distance / denom, np.nan)
+        return rays * s[:, None]
+
+
+@dataclass(frozen=True)
+class LevelPoints:
+    """Observation points of one pyramid level, in the keyframe camera.
+
+    ``uv`` (N, 2) float64 px of that level; ``X`` (N, 3) float64 m; ``intensity`` (N,)
+    float32 grey levels; ``grad`` (N, 2) float32 grey levels per px; ``tri`` (N,) int8 the
+    triangle (0 or 1) and ``bary`` (N, 3) float32 the barycentric coordinates on it.
+    """
+
+    level: int
+    camera: PinholeCamera
+    uv: np.ndarray
+    X: np.ndarray
+    intensity: np.ndarray
+    grad: np.ndarray
+    tri: np.ndarray
+    bary: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.uv)
+
+
+def sobel_gradient(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sobel derivatives (gx, gy) of a float32 image, in grey levels per pixel."""
+    gx = cv2.Sobel(image, cv2.CV_32F, 1, 0, ksize=3, scale=0.125, borderType=cv2.BORDER_REPLICATE)
+    gy = cv2.Sobel(image, cv2.CV_32F, 0, 1, ksize=3, scale=0.125, borderType=cv2.BORDER_REPLICATE)
+    return gx, gy
+
+
+def estimate_noise_sigma(image: np.ndarray) -> float:
+    """Standard deviation (grey levels) of white image noise, by Immerkaer's Laplacian-difference method."""
+    k = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], dtype=np.float32)
+    resp = cv2.filter2D(image.astype(np.float32), -1, k, borderType=cv2.BORDER_REFLECT)[1:-1, 1:-1]
+    return float(np.sqrt(np.pi / 2.0) / 6.0 * np.mean(np.abs(resp)))
+
+
+def default_threshold(noise_sigma: float) -> float:
+    """Default delta_1: three times the std of one Sobel component of pure noise (0.433 sigma)."""
+    return max(1.0, 3.0 * 0.433 * noise_sigma)
+
+
+def rectangle_corners(camera: PinholeCamera, plane: Plane,
+                      region: tuple[int, int, int, int]) -> np.ndarray:
+    """The model rectangle's 4 corners (4, 3) m: the region's corner pixels lifted onto the plane.
+
+    Order: top-left, top-right, bottom-right, bottom-left; triangles (0, 1, 2) and (0, 2, 3).
+    """
+    x0, y0, x1, y1 = region
+    uv = np.array([[x0 - 0.5, y0 - 0.5], [x1 - 0.5, y0 - 0.5],
+                   [x1 - 0.5, y1 - 0.5], [x0 - 0.5, y1 - 0.5]], dtype=float)
+    return plane.intersect(camera.rays(uv))
+
+
+TRIANGLES = np.array([[0, 1, 2], [0, 2, 3]])
+
+
+def barycentric(X: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Triangle index (N,) and barycentric coordinates (N, 3) of plane points ``X`` (N, 3).
+
+    Points outside both triangles get triangle -1.
+    """
+    tri = np.full(len(X), -1, dtype=np.int8)
+    bary = np.zeros((len(X), 3))
+    for k, (i, j, m) in enumerate(TRIANGLES):
+        a, b, c = corners[i], corners[j], corners[m]
+        v0, v1, v2 = b - a, c - a, X - a
+        d00, d01, d11 = v0 @ v0, v0 @ v1, v1 @ v1
+        d20, d21 = v2 @ v0, v2 @ v1
+        den = d00 * d11 - d01 * d01
+        lb = (d11 * d20 - d01 * d21) / den
+        lc = (d00 * d21 - d01 * d20) / den
+        la = 1.0 - lb - lc
+        inside = (tri < 0) & (la >= -1e-9) & (lb >= -1e-9) & (lc >= -1e-9)
+        tri[inside] = k
+        bary[inside] = np.stack([la, lb, lc], 1)[inside]
+    return tri, bary
+
+
+def _even_spread(mag: np.ndarray, ys: np.ndarray, xs: np.ndarray, cap: int,
+                 shape: tuple[int, int]) -> np.ndarray:
+    """Indices of at most ``cap`` candidates, strongest first within cells of an even grid."""
+    if len(mag) <= cap:
+        return np.arange(len(mag))
+    h, w = shape
+    cells = max(1, int(np.sqrt(cap / 8.0)))  # about 8 points per cell when full
+    cw, ch = max(1, -(-w // cells)), max(1, -(-h // cells))
+    cell = (ys // ch) * (cells + 1) + xs // cw
+    order = np.lexsort((-mag, cell))
+    cell_sorted = cell[order]
+    first = np.searchsorted(cell_sorted, cell_sorted, side="left")
+    rank = np.arange(len(order)) - first
+    n_cells = len(np.unique(cell_sorted))
+    quota = max(1, -(-cap // n_cells))
+    keep = order[rank < quota]
+    if len(keep) > cap:
+        keep = keep[np.argsort(-mag[keep], kind="stable")[:cap]]
+    return np.sort(keep)
+
+
+def select_points(image: np.ndarray, camera: PinholeCamera, plane: Plane, corners: np.ndarray,
+                  *, level: int, threshold: float, max_points: int,
+                  mask: np.ndarray | None = None, border: int = 2) -> LevelPoints:
+    """Observation points of one pyramid level (section 10.2.5, step 4).
+
+    ``image`` (H, W) float32 is the keyframe at this level, ``camera`` its camera, ``corners``
+    the model rectangle (4, 3) in the keyframe camera, ``mask`` (H, W) bool of usable pixels.
+    Pixels inside the projected rectangle with ``|Sobel| > threshold`` are kept, at most
+    ``max_points`` of them spread evenly over the image.
+    """
+    h, w = image.shape
+    gx, gy = sobel_gradient(image)
+    mag = np.hypot(gx, gy)
+    poly = camera.project(corners)
+    inside = np.zeros((h, w), np.uint8)
+    if np.all(np.isfinite(poly)):
+        cv2.fillConvexPoly(inside, np.round(poly * 16).astype(np.int32), 1, shift=4)
+    ok = (mag > threshold) & inside.astype(bool)
+    ok[:border] = ok[-border:] = False
+    ok[:, :border] = ok[:, -border:] = False
+    if mask is not None:
+        ok &= mask
+    ys, xs = np.nonzero(ok)
+    m = mag[ys, xs]
+    keep = _even_spread(m, ys, xs, max_points, (h, w))
+    ys, xs = ys[keep], xs[keep]
+    uv = np.stack([xs, ys], 1).astype(np.float64)
+    X = plane.intersect(camera.rays(uv))
+    good = np.all(np.isfinite(X), axis=1) & (X[:, 2] > 1e-6)
+    uv, X, ys, xs = uv[good], X[good], ys[good], xs[good]
+    tri, bary = barycentric(X, corners)
+    return LevelPoints(level=level, camera=camera, uv=uv, X=X,
+                       intensity=image[ys, xs].astype(np.float32),
+                       grad=np.stack([gx[ys, xs], gy[ys, xs]], 1).astype(np.float32),
+                       tri=tri, bary=bary.astype(np.float32))
+
+
+def require_points(points: LevelPoints, *, minimum: int, threshold: float) -> None:
+    """Raise TrackingError when a keyframe has too few observation points to estimate 6 DoF."""
+    if len(points) < minimum:
+        raise TrackingError(
+            f"only {len(points)} observation points with gradient > {threshold:.3g} in the ground "
+            f"region (need {minimum}); lower --threshold or choose another region")

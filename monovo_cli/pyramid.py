@@ -1,0 +1,26 @@
+"""Gaussian image pyramids (cv2.pyrDown: 5-tap binomial filter, then every other pixel).
+
+Level l has the camera ``PinholeCamera.scaled(l)``: pixel centre x_l = (x_0 + 0.5) / 2^l - 0.5.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+
+def num_levels(width: int, height: int, *, min_size: int = 32, max_levels: int = 6) -> int:
+    """How many levels until the smaller side would drop below ``min_size`` px."""
+    n, w, h = 1, width, height
+    while n < max_levels and min((w + 1) // 2, (h + 1) // 2) >= min_size:
+        w, h = (w + 1) // 2, (h + 1) // 2
+        n += 1
+    return n
+
+
+def build_pyramid(image: np.ndarray, levels: int) -> list[np.ndarray]:
+    """``levels`` float32 images, finest first; ``image`` (H, W) grey."""
+    pyr = [np.ascontiguousarray(image, dtype=np.float32)]
+    for _ in range(levels - 1):
+        pyr.append(cv2.pyrDown(pyr[-1], borderType=cv2.BORDER_REPLICATE))
+    return pyr
