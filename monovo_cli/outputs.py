@@ -186,3 +186,69 @@ def read_motion_csv(path: Path) -> tuple[np.ndarray, np.ndarray, list[str]]:
         poses.append(make_pose(so3_exp(np.radians(v[4:7])), np.array(v[1:4])))
         statuses.append(r[10].strip() if len(r) > 10 else "ok")
     return np.array(frames, dtype=int), np.array(poses).reshape(-1, 4, 4), statuses
+
+
+def save_model(path: Path, keyframe, camera, region) -> None:
+    """Save a ground model (a :class:`~monovo_cli.odometry.Keyframe`) to ``model.npz`` atomically."""
+    path = Path(path)
+    arrays = {
+        "format": np.array("monovo-model-1"),
+        "camera": np.array([camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy]),
+        "distortion": np.asarray(camera.distortion, dtype=float),
+        "region": np.asarray(region, dtype=int),
+        "normal": keyframe.plane.normal,
+        "distance": np.array(keyframe.plane.distance),
+        "corners": keyframe.corners,
+        "noise_sigma": np.array(keyframe.noise_sigma),
+        "threshold": np.array(keyframe.threshold),
+        "levels": np.array(len(keyframe.levels)),
+    }
+    for lv, kl in enumerate(keyframe.levels):
+        p = kl.points
+        for name in ("uv", "X", "intensity", "grad", "tri", "bary"):
+            arrays[f"l{lv}_{name}"] = getattr(p, name)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:
+        raise OutputError(f"{path.parent}: cannot write here ({exc.strerror})") from None
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez_compressed(f, **arrays)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def load_model(path: Path):
+    """Load ``model.npz``: returns ``(camera_params (6,), region, Keyframe)``."""
+    from monovo_cli.estimate import KeyLevel
+    from monovo_cli.geometry import PinholeCamera
+    from monovo_cli.ground import LevelPoints, Plane
+    from monovo_cli.odometry import Keyframe
+
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            if "format" not in z or str(z["format"]) != "monovo-model-1":
+                raise InputError(f"{path}: not a monovo model (write one with 'monovo init')")
+            d = {k: z[k] for k in z.files}
+    except InputError:
+        raise
+    except (OSError, ValueError, KeyError, EOFError) as exc:
+        raise InputError(f"{path}: cannot read model ({exc})") from None
+    c = d["camera"]
+    camera = PinholeCamera(int(c[0]), int(c[1]), float(c[2]), float(c[3]), float(c[4]), float(c[5]),
+                           tuple(float(v) for v in d["distortion"]))
+    plane = Plane(d["normal"].astype(float), float(d["distance"]))
+    levels = []
+    for lv in range(int(d["levels"])):
+        pts = LevelPoints(lv, camera.scaled(lv), *(d[f"l{lv}_{n}"] for n in
+                                                   ("uv", "X", "intensity", "grad", "tri", "bary")))
+        levels.append(KeyLevel.from_points(pts))
+    key = Keyframe(0, np.eye(4), plane, d["corners"], tuple(levels), float(d["noise_sigma"]),
+                   float(d["threshold"]))
+    return camera, tuple(int(v) for v in d["region"]), key

@@ -1,0 +1,240 @@
+"""The ``monovo`` command line: parse, set up logging and progress, one library call per command.
+
+Exit status (SPEC): 0 success; 2 bad usage or bad input (one line on stderr, no traceback);
+1 internal error; 130 on Ctrl-C, 143 on SIGTERM (what was done is kept on disk).
+"""
+
+from __future__ import annotations
+
+import logging
+import signal
+import sys
+from pathlib import Path
+
+import click
+
+from monovo_cli import __version__
+from monovo_cli.errors import MonovoError
+
+log = logging.getLogger("monovo_cli")
+
+
+class BadInput(click.ClickException):
+    """A MonovoError at the edge: one line on stderr, exit status 2."""
+
+    exit_code = 2
+
+
+class Terminated(Exception):
+    """SIGTERM arrived."""
+
+
+def _on_sigterm(signum, frame):  # noqa: ARG001
+    raise Terminated()
+
+
+class MonovoGroup(click.Group):
+    """Turns library errors into one-line messages with the SPEC's exit statuses."""
+
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except MonovoError as exc:
+            if ctx.meta.get("monovo.verbose"):
+                log.exception("details")
+            raise BadInput(str(exc)) from None
+        except (click.ClickException, click.exceptions.Exit, click.exceptions.Abort):
+            raise
+        except KeyboardInterrupt:
+            click.echo("monovo: interrupted; the frames done so far are on disk", err=True)
+            sys.exit(130)
+        except Terminated:
+            click.echo("monovo: terminated; the frames done so far are on disk", err=True)
+            sys.exit(143)
+        except Exception as exc:
+            if ctx.meta.get("monovo.verbose"):
+                raise
+            msg = f"internal error: {type(exc).__name__}: {exc} (run with -v for the traceback)"
+            click.echo(f"Error: {msg}", err=True)
+            sys.exit(1)
+
+
+def _common(f):
+    """-q/--quiet and -v/--verbose on every command."""
+    f = click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")(f)
+    f = click.option("-v", "--verbose", is_flag=True, help="Debug logging and tracebacks.")(f)
+    return f
+
+
+def _setup(ctx: click.Context, quiet: bool, verbose: bool) -> None:
+    ctx.meta["monovo.verbose"] = verbose
+    ctx.meta["monovo.quiet"] = quiet
+    level = logging.DEBUG if verbose else (logging.ERROR if quiet else logging.WARNING)
+    logging.basicConfig(level=level, format="monovo: %(levelname)s: %(message)s", stream=sys.stderr)
+    logging.getLogger("monovo_cli").setLevel(level)
+    signal.signal(signal.SIGTERM, _on_sigterm)
+
+
+class _Progress:
+    """A tqdm bar on stderr driven by the library's ``progress(done, total)`` callback."""
+
+    def __init__(self, quiet: bool, unit: str) -> None:
+        self.quiet, self.unit, self.bar = quiet, unit, None
+
+    def __call__(self, done: int, total: int) -> None:
+        if self.quiet:
+            return
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, unit=self.unit, file=sys.stderr, dynamic_ncols=True,
+                            leave=False)
+        self.bar.update(done - self.bar.n)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _track_options(levels, threshold, max_points, robust, reanchor_fraction):
+    from monovo_cli.estimate import EstimatorOptions
+    from monovo_cli.odometry import TrackOptions
+
+    return TrackOptions(levels=levels, threshold=threshold, max_points=max_points,
+                        reanchor_fraction=reanchor_fraction,
+                        estimator=EstimatorOptions(robust=robust))
+
+
+def _model_options(f):
+    f = click.option("--reanchor-fraction", type=click.FloatRange(0.0, 1.0, max_open=True),
+                     default=0.6, show_default=True,
+                     help="Re-anchor when fewer of the keyframe's points than this stay in view.")(f)
+    f = click.option("--robust", type=click.Choice(["huber", "tukey", "none"]), default="huber",
+                     show_default=True, help="M-estimator of the IRLS weights.")(f)
+    f = click.option("--max-points", type=click.IntRange(min=50), default=20000, show_default=True,
+                     help="Cap on observation points at full resolution (spread evenly).")(f)
+    f = click.option("--threshold", type=click.FloatRange(min=0.0, min_open=True), default=None,
+                     help="delta_1: Sobel magnitude (grey levels/px) an observation point needs "
+                          "[default: 3x the noise's Sobel std, estimated from frame 0].")(f)
+    f = click.option("--levels", type=click.IntRange(1, 8), default=None,
+                     help="Pyramid levels [default: until the image is ~32 px].")(f)
+    return f
+
+
+@click.group(cls=MonovoGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, "--version", prog_name="monovo")
+def main() -> None:
+    """Monocular visual odometry over planar ground from intensity differences.
+
+    \b
+    A camera looks at the ground; monovo estimates its 6-DoF motion frame by frame
+    (G. Martinez, intensity-difference based monocular visual odometry). Typical use:
+      monovo synth demo --preset drive --frames 100
+      monovo track demo -o out            # init.yaml found beside frames/
+    """
+
+
+@main.command()
+@click.argument("out", type=click.Path(path_type=Path))
+@click.option("--preset", type=click.Choice(["pairs", "drive"]), default="drive", show_default=True)
+@click.option("--frames", type=click.IntRange(min=1), default=None,
+              help="Frames of the drive, or number of pairs [default: 300 / 100].")
+@click.option("--size", default=None, metavar="WxH",
+              help="Image size [default: 512x512 drive, 688x544 pairs].")
+@click.option("--noise-var", type=click.FloatRange(min=0.0), default=10.0, show_default=True,
+              help="Variance of the added Gaussian noise (grey levels^2).")
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--texture", type=click.Path(path_type=Path), default=None,
+              help="A photo to use as ground texture instead of the procedural one.")
+@click.option("--max-translation", type=click.FloatRange(min=0.0), default=None,
+              help="pairs: translations uniform in +-this per axis, m [default: 10 m at 100 m].")
+@click.option("--exposure", is_flag=True, help="Vary gain and bias from frame to frame.")
+@click.option("--overwrite", is_flag=True, help="Replace OUT if it exists.")
+@_common
+@click.pass_context
+def synth(ctx, out, preset, frames, size, noise_var, seed, texture, max_translation, exposure,
+          overwrite, quiet, verbose):
+    """Write a synthetic sequence with ground truth into OUT."""
+    _setup(ctx, quiet, verbose)
+    from monovo_cli import synth as synth_mod
+
+    wh = None
+    if size is not None:
+        try:
+            w, h = (int(v) for v in size.lower().split("x"))
+        except ValueError:
+            raise click.BadParameter(f"expected WxH like 512x512, got {size!r}",
+                                     param_hint="--size") from None
+        wh = (w, h)
+    if overwrite and out.exists():
+        import shutil
+
+        if out.is_dir():
+            shutil.rmtree(out)
+        else:
+            out.unlink()
+    bar = _Progress(quiet, "frame")
+    try:
+        s = synth_mod.synthesize(out, preset=preset, frames=frames, size=wh, noise_var=noise_var,
+                                 seed=seed, texture=texture, max_translation=max_translation,
+                                 exposure=exposure, progress=bar)
+    finally:
+        bar.close()
+    if not quiet:
+        click.echo(f"wrote {s.sequences} sequence(s) of {s.frames_per_sequence} frames to {out}")
+
+
+@main.command()
+@click.argument("seq", type=click.Path(path_type=Path))
+@click.option("-p", "--params", type=click.Path(path_type=Path), default=None,
+              help="init.yaml [default: the one beside the frames].")
+@click.option("-o", "--output", "out", type=click.Path(path_type=Path), required=True,
+              help="The model file to write (model.npz).")
+@_model_options
+@_common
+@click.pass_context
+def init(ctx, seq, params, out, levels, threshold, max_points, robust, reanchor_fraction, quiet,
+         verbose):
+    """Build the ground model and its observation points from frame 0 of SEQ."""
+    _setup(ctx, quiet, verbose)
+    from monovo_cli.runner import init_model
+
+    key = init_model(seq, params, out, _track_options(levels, threshold, max_points, robust,
+                                                      reanchor_fraction))
+    if not quiet:
+        counts = ", ".join(str(len(kl.points)) for kl in key.levels)
+        click.echo(f"wrote {out}: {len(key.levels)} levels, observation points {counts}, "
+                   f"threshold {key.threshold:.3g}")
+
+
+@main.command()
+@click.argument("seq", type=click.Path(path_type=Path))
+@click.option("-p", "--params", type=click.Path(path_type=Path), default=None,
+              help="init.yaml [default: the one beside the frames].")
+@click.option("-o", "--output", "out", required=True,
+              help="Output directory, or '-' to stream motion.csv rows to stdout.")
+@click.option("--model", type=click.Path(path_type=Path), default=None,
+              help="A model.npz from 'monovo init' to start from.")
+@click.option("--overwrite", is_flag=True, help="Replace results already in the output directory.")
+@_model_options
+@_common
+@click.pass_context
+def track(ctx, seq, params, out, model, overwrite, levels, threshold, max_points, robust,
+          reanchor_fraction, quiet, verbose):
+    """Estimate the motion of every frame of SEQ; write motion.csv and the trajectory."""
+    _setup(ctx, quiet, verbose)
+    from monovo_cli.runner import track_sequence
+
+    to_stdout = out == "-"
+    bar = _Progress(quiet, "frame")
+    try:
+        s = track_sequence(seq, params, None if to_stdout else Path(out),
+                           _track_options(levels, threshold, max_points, robust, reanchor_fraction),
+                           model=model, overwrite=overwrite, progress=bar)
+    finally:
+        bar.close()
+    if not quiet:
+        click.echo(f"tracked {s.frames} frames in {s.seconds:.1f} s ({s.fps:.1f} frames/s): "
+                   f"mean msd {s.mean_msd:.2f}, {s.reanchored} re-anchored, {s.lost} lost, "
+                   f"path length {s.distance_m:.3f} m"
+                   + ("" if to_stdout else f"; outputs in {out}"), err=to_stdout)

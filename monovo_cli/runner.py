@@ -1,0 +1,171 @@
+"""Whole-sequence jobs behind the CLI: read frames, run the tracker, stream the outputs.
+
+This is the only place that ties files to the pure core (odometry). Rows of motion.csv are
+written and flushed as frames are done; trajectory.csv / .tum are written atomically at
+the end, every ``checkpoint_every`` frames, and when the run is interrupted, so they always
+hold exactly the frames done.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from monovo_cli.config import InitConfig, check_frame_size, load_init
+from monovo_cli.errors import InputError, OutputError
+from monovo_cli.frames import FrameSequence, find_init_yaml, resolve_sequence
+from monovo_cli.ground import Plane
+from monovo_cli.odometry import FrameResult, Keyframe, TrackOptions, build_keyframe, track
+from monovo_cli.outputs import (
+    MotionRow,
+    MotionWriter,
+    atomic_write_text,
+    load_model,
+    save_model,
+    trajectory_csv_text,
+    tum_text,
+)
+
+log = logging.getLogger(__name__)
+
+RESULT_FILES = ("motion.csv", "trajectory.csv", "trajectory.tum")
+
+
+@dataclass(frozen=True)
+class TrackSummary:
+    frames: int
+    mean_msd: float
+    seconds: float
+    lost: int
+    reanchored: int
+    distance_m: float
+    out_dir: Path | None
+
+    @property
+    def fps(self) -> float:
+        return self.frames / self.seconds if self.seconds > 0 else float("inf")
+
+
+def open_sequence(seq: Path, params: Path | None) -> tuple[FrameSequence, InitConfig]:
+    """The frames of ``seq`` and its init.yaml (``params``, or found beside the frames)."""
+    seq_dir = resolve_sequence(Path(seq))
+    frames = FrameSequence(seq_dir)
+    if params is None:
+        params = find_init_yaml(Path(seq))
+        if params is None:
+            raise InputError(f"{seq}: no init.yaml beside the frames; give one with -p init.yaml")
+    cfg = load_init(Path(params))
+    first = frames.read(0)
+    h, w = first.image.shape
+    check_frame_size(cfg, w, h, first.path)
+    return frames, cfg
+
+
+def prepare_out_dir(out_dir: Path, overwrite: bool) -> None:
+    """Create ``out_dir`` or refuse one that already holds results (unless ``overwrite``)."""
+    out_dir = Path(out_dir)
+    if out_dir.exists() and not out_dir.is_dir():
+        raise OutputError(f"{out_dir}: exists and is not a directory; give -o a directory")
+    if out_dir.is_dir():
+        existing = [n for n in RESULT_FILES if (out_dir / n).exists()]
+        if existing and not overwrite:
+            raise OutputError(f"{out_dir}: already holds results ({', '.join(existing)}); "
+                              "use --overwrite or another -o")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"{out_dir}: cannot create output directory ({exc.strerror})") from None
+    probe = out_dir / ".monovo_write_test"
+    try:
+        probe.write_text("")
+        probe.unlink()
+    except OSError as exc:
+        raise OutputError(f"{out_dir}: not writable ({exc.strerror})") from None
+
+
+def init_model(seq: Path, params: Path | None, out: Path, options: TrackOptions) -> Keyframe:
+    """``monovo init``: build the frame-0 ground model and save it to ``out`` (model.npz)."""
+    frames, cfg = open_sequence(seq, params)
+    image = frames.read(0).image
+    key = build_keyframe(0, image, cfg.camera, _plane(cfg), cfg.ground.region, np.eye(4), options)
+    save_model(out, key, cfg.camera, cfg.ground.region)
+    return key
+
+
+def _plane(cfg: InitConfig) -> Plane:
+    return Plane(np.asarray(cfg.ground.normal_array(), dtype=float), float(cfg.ground.distance))
+
+
+def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options: TrackOptions, *,
+                   model: Path | None = None, overwrite: bool = False,
+                   checkpoint_every: int = 100,
+                   progress: Callable[[int, int], None] | None = None) -> TrackSummary:
+    """``monovo track``: estimate every frame's motion and write the SPEC outputs.
+
+    ``out_dir`` None streams motion.csv rows to stdout and writes no files.
+    ``progress(done, total)`` is called after every frame.
+    """
+    frames, cfg = open_sequence(seq, params)
+    if len(frames) < 2:
+        raise InputError(f"{frames.dir}: only {len(frames)} frame; tracking needs at least 2")
+    first_key = None
+    if model is not None:
+        cam, region, first_key = load_model(model)
+        if (cam.width, cam.height) != (cfg.camera.width, cfg.camera.height):
+            raise InputError(f"{model}: model is for {cam.width}x{cam.height} frames, "
+                             f"init.yaml for {cfg.camera.width}x{cfg.camera.height}")
+    if out_dir is not None:
+        prepare_out_dir(out_dir, overwrite)
+        for name in RESULT_FILES:  # stale results of an earlier run must not survive
+            (Path(out_dir) / name).unlink(missing_ok=True)
+        stream = open(Path(out_dir) / "motion.csv", "w", newline="")
+    else:
+        stream = sys.stdout
+    results: list[tuple[int, float, np.ndarray]] = []
+
+    def flush_trajectory() -> None:
+        if out_dir is None or not results:
+            return
+        idx, ts, poses = zip(*results)
+        atomic_write_text(Path(out_dir) / "trajectory.csv", trajectory_csv_text(idx, ts, poses))
+        atomic_write_text(Path(out_dir) / "trajectory.tum", tum_text(ts, poses))
+
+    msds, lost, reanchored = [], 0, 0
+    t0 = time.perf_counter()
+    try:
+        writer = MotionWriter(stream, with_std=True)
+        gen = ((f.index, f.timestamp, f.image) for f in frames)
+        prev = None
+        dist = 0.0
+        for res in track(gen, cfg.camera, _plane(cfg), cfg.ground.region, options,
+                         first_keyframe=first_key):
+            results.append((res.index, res.timestamp, res.world_from_cam))
+            if res.index > 0:
+                writer.write(_row(res))
+                msds.append(res.msd)
+                lost += res.status == "lost"
+                reanchored += res.status == "reanchored"
+                dist += float(np.linalg.norm(res.world_from_cam[:3, 3] - prev[:3, 3]))
+            prev = res.world_from_cam
+            if checkpoint_every and len(results) % checkpoint_every == 0:
+                flush_trajectory()
+            if progress is not None:
+                progress(len(results), len(frames))
+    finally:
+        flush_trajectory()
+        if out_dir is not None:
+            stream.close()
+    seconds = time.perf_counter() - t0
+    return TrackSummary(len(results), float(np.mean(msds)) if msds else 0.0, seconds, lost,
+                        reanchored, dist, Path(out_dir) if out_dir is not None else None)
+
+
+def _row(res: FrameResult) -> MotionRow:
+    return MotionRow(frame=res.index, prev_from_cur=res.prev_from_cur, msd=res.msd,
+                     iterations=res.iterations, points=res.points, status=res.status, std=res.std)
