@@ -1,0 +1,554 @@
+"""The initial-pose file (``init.yaml``, SPEC "Input: the initial-pose file").
+
+This module is the only place where raw YAML exists: :func:`load_init` turns a file
+into a validated :class:`InitConfig` (a :class:`~monovo_cli.geometry.PinholeCamera`
+plus a :class:`GroundPlane`), :func:`dump_init` writes one back. Every problem raises
+:class:`~monovo_cli.errors.ConfigError` with one line: the file, what is wrong and what
+would fix it, e.g. ``init.yaml: camera.fx must be > 0, got -3``.
+
+Ground from height and pitch
+----------------------------
+Instead of ``normal`` + ``distance`` the ground may be given as ``height`` (m),
+``pitch_deg`` p (the camera tilted down from horizontal; 90 = looking straight down)
+and optional ``roll_deg`` r. ``distance = height`` and::
+
+    normal = (sin r * cos p,  cos r * cos p,  sin p)
+
+i.e. ``normal = Rz(r)^T (0, cos p, sin p)``: starting from the pitched camera (whose
+ground normal is ``(0, cos p, sin p)`` as in SPEC), the camera is turned about its own
+optical axis z by r with ``Rz`` the usual right-handed rotation. In the image (x right,
+y down) a positive r turns the camera's x axis towards its y axis, i.e. the camera turns
+*clockwise as seen from behind it*: its right side dips, so the scene appears turned
+counter-clockwise and the horizon rises to the right (horizon slope dv/du = -tan r for
+fx = fy). Roll 0 gives SPEC's ``normal = (0, cos p, sin p)``.
+"""
+
+from __future__ import annotations
+
+import difflib
+import logging
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from monovo_cli.errors import ConfigError
+from monovo_cli.geometry import PinholeCamera
+from monovo_cli.outputs import atomic_write_text
+
+log = logging.getLogger(__name__)
+
+TOP_KEYS = ("camera", "camera_file", "ground")
+CAMERA_KEYS = ("width", "height", "fx", "fy", "cx", "cy", "distortion")
+GROUND_KEYS = ("normal", "distance", "height", "pitch_deg", "roll_deg", "region")
+
+MAX_IMAGE_SIDE = 100_000        # px; larger is certainly a typo
+MIN_REGION_FRACTION = 0.01      # the ground region must cover >= 1% of the image
+MIN_NORMAL_Z = 1e-3             # normal . optical axis: the plane must lie in front
+MIN_RAY_DOT = 1e-6              # n . ray at a region pixel: the ray must hit the plane
+MAX_DEPTH_RATIO = 1e4           # region depth / plane distance: beyond this, too oblique
+UNIT_TOLERANCE = 1e-6           # |normal| further than this from 1 is normalised (warning)
+
+# PyYAML (YAML 1.1) reads 1e3 and 1.5e3 as strings; accept such plain numbers.
+_NUMBER_RE = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+
+
+@dataclass(frozen=True)
+class GroundPlane:
+    """The planar ground at frame 0, in camera-0 coordinates: ``{X : n . X = d}``.
+
+    ``normal`` is the unit normal pointing from the camera to the ground, ``distance``
+    the camera's distance to the plane (m, > 0). ``region`` is the image rectangle
+    ``(x0, y0, x1, y1)`` (px, x1 and y1 exclusive) the ground model covers at frame 0;
+    ``None`` means the whole frame (:func:`load_init` always fills it in).
+    """
+
+    normal: tuple[float, float, float]
+    distance: float
+    region: tuple[int, int, int, int] | None = None
+
+    def normal_array(self) -> np.ndarray:
+        """The unit normal as a float array (3,)."""
+        return np.array(self.normal, dtype=float)
+
+    def region_or_full(self, width: int, height: int) -> tuple[int, int, int, int]:
+        """``region``, or the whole ``width`` x ``height`` frame when it is ``None``."""
+        return self.region if self.region is not None else (0, 0, int(width), int(height))
+
+    @classmethod
+    def from_height_pitch(cls, height: float, pitch_deg: float, roll_deg: float = 0.0,
+                          region: tuple[int, int, int, int] | None = None) -> GroundPlane:
+        """The plane of a camera ``height`` m above the ground, pitched down by ``pitch_deg``
+        and rolled by ``roll_deg`` (convention in the module docstring)."""
+        n = normal_from_pitch_roll(pitch_deg, roll_deg)
+        return cls(normal=(float(n[0]), float(n[1]), float(n[2])), distance=float(height),
+                   region=region)
+
+
+@dataclass(frozen=True)
+class InitConfig:
+    """A validated ``init.yaml``: the camera, the ground plane and the file it came from."""
+
+    camera: PinholeCamera
+    ground: GroundPlane
+    path: Path
+
+
+def normal_from_pitch_roll(pitch_deg: float, roll_deg: float = 0.0) -> np.ndarray:
+    """Unit ground normal (3,) of a camera pitched down by ``pitch_deg`` and rolled by
+    ``roll_deg`` about its optical axis: ``(sin r cos p, cos r cos p, sin p)``."""
+    p, r = math.radians(pitch_deg), math.radians(roll_deg)
+    return np.array([math.sin(r) * math.cos(p), math.cos(r) * math.cos(p), math.sin(p)])
+
+
+# ----------------------------------------------------------------------------- helpers
+
+
+def _fail(name: str, message: str) -> ConfigError:
+    return ConfigError(f"{name}: {message}".replace("\n", "\\n").replace("\r", "\\r"))
+
+
+def _show(value: Any) -> str:
+    """A short one-line rendering of a YAML value for messages (never expands aliases)."""
+    if value is None:
+        return "null"
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, int):
+        if abs(value) < 10**30:
+            return str(value)
+        return f"a {int(value.bit_length() * 0.30103) + 1}-digit number"
+    if isinstance(value, float):
+        return repr(value)
+    if isinstance(value, str):
+        s = value if len(value) <= 40 else value[:37] + "..."
+        return repr(s)
+    if isinstance(value, (list, tuple)):
+        return f"a list of {len(value)} items"
+    if isinstance(value, dict):
+        return "a mapping"
+    return f"a {type(value).__name__}"
+
+
+def _number(name: str, where: str, value: Any) -> float:
+    """A finite float from a YAML value, or ConfigError."""
+    if isinstance(value, bool) or value is None:
+        raise _fail(name, f"{where} must be a number, got {_show(value)}")
+    if isinstance(value, str):
+        if not _NUMBER_RE.fullmatch(value.strip()):
+            raise _fail(name, f"{where} must be a number, got {_show(value)}")
+        value = value.strip()
+    if not isinstance(value, (int, float, str)):
+        raise _fail(name, f"{where} must be a number, got {_show(value)}")
+    try:
+        x = float(value)
+    except (OverflowError, ValueError):
+        x = math.inf
+    if not math.isfinite(x):
+        raise _fail(name, f"{where} must be a finite number, got {_show(value)}")
+    return x
+
+
+def _integer(name: str, where: str, value: Any) -> int:
+    """A whole number from a YAML value (688 or 688.0), or ConfigError."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        return value
+    x = _number(name, where, value)
+    if not x.is_integer():
+        raise _fail(name, f"{where} must be a whole number, got {_show(value)}")
+    return int(x)
+
+
+def _numbers(name: str, where: str, value: Any, lengths: tuple[int, ...], what: str) -> list[float]:
+    if not isinstance(value, (list, tuple)) or len(value) not in lengths:
+        raise _fail(name, f"{where} must be {what}, got {_show(value)}")
+    return [_number(name, f"{where}[{i}]", v) for i, v in enumerate(value)]
+
+
+def _check_keys(name: str, mapping: dict, allowed: tuple[str, ...], prefix: str) -> None:
+    for key in mapping:
+        if isinstance(key, str) and key in allowed:
+            continue
+        plain = isinstance(key, str) and key.isprintable() and 0 < len(key) <= 40
+        shown = key if plain else _show(key)
+        close = difflib.get_close_matches(str(key), allowed, n=1)
+        hint = f"did you mean '{close[0]}'?" if close else f"expected one of {', '.join(allowed)}"
+        raise _fail(name, f"unknown key '{prefix}{shown}' ({hint})")
+
+
+def _mapping(name: str, where: str, value: Any, what: str) -> dict:
+    if not isinstance(value, dict):
+        raise _fail(name, f"{where} must be a mapping of {what}, got {_show(value)}")
+    return value
+
+
+def _positive(name: str, where: str, value: Any) -> float:
+    x = _number(name, where, value)
+    if x <= 0:
+        raise _fail(name, f"{where} must be > 0, got {_show(value)}")
+    return x
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """SafeLoader that rejects a key given twice in one mapping."""
+
+    def construct_mapping(self, node, deep=False):
+        if isinstance(node, yaml.MappingNode):
+            seen = set()
+            for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    continue
+                key = self.construct_object(key_node, deep=deep)
+                try:
+                    duplicate = key in seen
+                    seen.add(key)
+                except TypeError:  # unhashable: SafeLoader reports it
+                    continue
+                if duplicate:
+                    raise yaml.constructor.ConstructorError(
+                        None, None, f"key {_show(key)} is given twice", key_node.start_mark)
+        return super().construct_mapping(node, deep=deep)
+
+
+def _read_yaml(path: Path, name: str, what: str) -> Any:
+    """Parse a YAML file; every failure is one ConfigError line naming ``name``."""
+    try:
+        data = path.read_bytes()
+    except (OSError, ValueError) as exc:
+        reason = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+        raise _fail(name, f"cannot read {what} ({reason})") from None
+    try:
+        return yaml.load(data, Loader=_UniqueKeyLoader)
+    except yaml.MarkedYAMLError as exc:
+        mark = exc.problem_mark or exc.context_mark
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = " ".join(str(exc.problem or exc.context or "syntax error").split())
+        raise _fail(name, f"not valid YAML{where}: {problem}") from None
+    except yaml.YAMLError as exc:
+        msg = " ".join(str(exc).split())
+        raise _fail(name, f"not valid YAML: {msg}") from None
+    except (ValueError, TypeError, OverflowError, RecursionError, MemoryError) as exc:
+        # e.g. a date such as 2001-13-45, or absurdly deep nesting
+        msg = " ".join(str(exc).split())[:80] or type(exc).__name__
+        raise _fail(name, f"not valid YAML: {msg}") from None
+
+
+# ----------------------------------------------------------------------------- parsing
+
+
+def _distortion(name: str, where: str, value: Any) -> tuple[float, ...]:
+    """OpenCV ``k1 k2 p1 p2 [k3 [k4 k5 k6]]`` normalised to 5 coefficients."""
+    if value is None:
+        return (0.0,) * 5
+    d = _numbers(name, where, value, (4, 5, 8),
+                 "a list of 4, 5 or 8 numbers (OpenCV k1 k2 p1 p2 [k3 [k4 k5 k6]])")
+    if len(d) == 8:
+        if any(c != 0.0 for c in d[5:]):
+            raise _fail(name, f"{where}: the rational model (k4 k5 k6 = {d[5]:g} {d[6]:g} "
+                              f"{d[7]:g}) is not supported; use k1 k2 p1 p2 k3 only")
+        d = d[:5]
+    return tuple(d + [0.0] * (5 - len(d)))
+
+
+def _camera_section(name: str, value: Any) -> PinholeCamera:
+    cam = _mapping(name, "camera", value, "width, height, fx, fy, cx, cy[, distortion]")
+    _check_keys(name, cam, CAMERA_KEYS, "camera.")
+    for key in CAMERA_KEYS[:6]:
+        if key not in cam:
+            raise _fail(name, f"camera.{key} is missing (camera needs width, height, fx, fy, cx, cy)")
+    size = {}
+    for key in ("width", "height"):
+        n = _integer(name, f"camera.{key}", cam[key])
+        if n <= 0 or n > MAX_IMAGE_SIDE:
+            raise _fail(name, f"camera.{key} must be a whole number of pixels in 1..{MAX_IMAGE_SIDE}, "
+                              f"got {_show(cam[key])}")
+        size[key] = n
+    fx = _positive(name, "camera.fx", cam["fx"])
+    fy = _positive(name, "camera.fy", cam["fy"])
+    cx = _number(name, "camera.cx", cam["cx"])
+    cy = _number(name, "camera.cy", cam["cy"])
+    dist = _distortion(name, "camera.distortion", cam.get("distortion"))
+    return PinholeCamera(size["width"], size["height"], fx, fy, cx, cy, dist)
+
+
+def _camera_info(init_name: str, base_dir: Path, value: Any) -> PinholeCamera:
+    """A camera from a ROS ``camera_info`` YAML (``camera_file:``, relative to init.yaml)."""
+    if not isinstance(value, str) or not value.strip():
+        raise _fail(init_name, f"camera_file must be a file name (a ROS camera_info YAML), "
+                               f"got {_show(value)}")
+    path = Path(value.strip()).expanduser()
+    if not path.is_absolute():
+        path = base_dir / path
+    name = str(path)
+    data = _read_yaml(path, name, f"the camera_file named in {init_name}")
+    fix = "expected a ROS camera_info YAML with image_width, image_height, camera_matrix"
+    if not isinstance(data, dict):
+        raise _fail(name, f"not a camera_info file ({fix})")
+    for key in ("image_width", "image_height", "camera_matrix"):
+        if key not in data:
+            raise _fail(name, f"not a camera_info file: {key} is missing ({fix})")
+    size = []
+    for key in ("image_width", "image_height"):
+        n = _integer(name, key, data[key])
+        if n <= 0 or n > MAX_IMAGE_SIDE:
+            raise _fail(name, f"{key} must be a whole number of pixels in 1..{MAX_IMAGE_SIDE}, "
+                              f"got {_show(data[key])}")
+        size.append(n)
+    km = _mapping(name, "camera_matrix", data["camera_matrix"], "rows, cols, data")
+    for key in ("rows", "cols"):
+        if key in km and _integer(name, f"camera_matrix.{key}", km[key]) != 3:
+            raise _fail(name, f"camera_matrix.{key} must be 3, got {_show(km[key])}")
+    if "data" not in km:
+        raise _fail(name, "camera_matrix.data is missing (9 numbers, row-major K)")
+    k = _numbers(name, "camera_matrix.data", km["data"], (9,), "9 numbers (row-major K)")
+    fx, skew, cx, k10, fy, cy, k20, k21, k22 = k
+    if fx <= 0 or fy <= 0:
+        raise _fail(name, f"camera_matrix fx and fy must be > 0, got {fx:g} and {fy:g}")
+    if k10 != 0.0 or k20 != 0.0 or k21 != 0.0 or abs(k22 - 1.0) > 1e-9:
+        raise _fail(name, "camera_matrix.data must be [fx, 0, cx, 0, fy, cy, 0, 0, 1]")
+    if abs(skew) > 1e-9 * fx:
+        raise _fail(name, f"camera_matrix skew {skew:g} is not supported (must be 0)")
+    model = data.get("distortion_model")
+    if model is not None and model not in ("plumb_bob", "rational_polynomial"):
+        raise _fail(name, f"distortion_model {_show(model)} is not supported "
+                          "(use plumb_bob: k1 k2 p1 p2 k3)")
+    dist: tuple[float, ...] = (0.0,) * 5
+    dc = data.get("distortion_coefficients")
+    if dc is not None:
+        dc = _mapping(name, "distortion_coefficients", dc, "rows, cols, data")
+        coeffs = dc.get("data")
+        if coeffs is not None and coeffs != []:
+            dist = _distortion(name, "distortion_coefficients.data", coeffs)
+    return PinholeCamera(size[0], size[1], fx, fy, cx, cy, dist)
+
+
+def _unit_normal(name: str, value: Any) -> tuple[float, float, float]:
+    v = np.array(_numbers(name, "ground.normal", value, (3,), "a list of 3 numbers [nx, ny, nz]"))
+    scale = float(np.max(np.abs(v)))
+    if scale == 0.0:
+        raise _fail(name, "ground.normal must not be zero-length; give the unit normal "
+                          "pointing from the camera to the ground")
+    u = v / scale
+    length = float(np.linalg.norm(u)) * scale
+    if abs(length - 1.0) > 1e-12:  # not unit to float precision (keeps round trips exact)
+        u = u / np.linalg.norm(u)
+        if abs(length - 1.0) > UNIT_TOLERANCE:
+            log.warning("%s: ground.normal %s has length %.6g; normalised to unit length",
+                        name, [float(c) for c in v], length)
+    else:
+        u = v
+    return (float(u[0]), float(u[1]), float(u[2]))
+
+
+def _region(name: str, value: Any, width: int, height: int) -> tuple[int, int, int, int]:
+    if value is None:
+        return (0, 0, width, height)
+    if not isinstance(value, (list, tuple)) or len(value) != 4:
+        raise _fail(name, f"ground.region must be a list of 4 whole numbers [x0, y0, x1, y1] (px), "
+                          f"got {_show(value)}")
+    x0, y0, x1, y1 = (_integer(name, f"ground.region[{i}]", v) for i, v in enumerate(value))
+    shown = f"[{x0}, {y0}, {x1}, {y1}]"
+    if x0 >= x1 or y0 >= y1:
+        raise _fail(name, f"ground.region {shown} is empty or inverted (need x0 < x1 and y0 < y1)")
+    if x0 < 0 or y0 < 0 or x1 > width or y1 > height:
+        raise _fail(name, f"ground.region {shown} extends outside the {width}x{height} image "
+                          f"(need 0 <= x0 < x1 <= {width} and 0 <= y0 < y1 <= {height})")
+    fraction = (x1 - x0) * (y1 - y0) / (width * height)
+    if fraction < MIN_REGION_FRACTION:
+        raise _fail(name, f"ground.region {shown} covers {100 * fraction:.2g}% of the image; "
+                          f"make it at least {100 * MIN_REGION_FRACTION:g}%")
+    return (x0, y0, x1, y1)
+
+
+def _ground_section(name: str, value: Any, camera: PinholeCamera) -> GroundPlane:
+    g = _mapping(name, "ground", value, "normal + distance (or height + pitch_deg) [+ region]")
+    _check_keys(name, g, GROUND_KEYS, "ground.")
+    explicit = [k for k in ("normal", "distance") if k in g]
+    angular = [k for k in ("height", "pitch_deg", "roll_deg") if k in g]
+    if explicit and angular:
+        raise _fail(name, f"ground has both {' + '.join(explicit)} and {' + '.join(angular)}; "
+                          "give either normal + distance or height + pitch_deg [+ roll_deg]")
+    if not explicit and not angular:
+        raise _fail(name, "ground needs normal + distance, or height + pitch_deg [+ roll_deg]")
+    if explicit:
+        for key in ("normal", "distance"):
+            if key not in g:
+                raise _fail(name, f"ground.{key} is missing (normal and distance go together)")
+        normal = _unit_normal(name, g["normal"])
+        distance = _positive(name, "ground.distance", g["distance"])
+    else:
+        for key in ("height", "pitch_deg"):
+            if key not in g:
+                raise _fail(name, f"ground.{key} is missing (height and pitch_deg go together)")
+        distance = _positive(name, "ground.height", g["height"])
+        pitch = _number(name, "ground.pitch_deg", g["pitch_deg"])
+        if not 0.0 < pitch < 180.0:
+            raise _fail(name, f"ground.pitch_deg must be in (0, 180) (degrees down from "
+                              f"horizontal, 90 = straight down), got {_show(g['pitch_deg'])}")
+        roll = 0.0
+        if g.get("roll_deg") is not None:
+            roll = _number(name, "ground.roll_deg", g["roll_deg"])
+            if not -90.0 < roll < 90.0:
+                raise _fail(name, f"ground.roll_deg must be in (-90, 90), got {_show(g['roll_deg'])}")
+        n = normal_from_pitch_roll(pitch, roll)
+        normal = (float(n[0]), float(n[1]), float(n[2]))
+    region = _region(name, g.get("region"), camera.width, camera.height)
+    plane = GroundPlane(normal=normal, distance=distance, region=region)
+    _check_visible(name, camera, plane)
+    return plane
+
+
+def _rays(camera: PinholeCamera, uv: np.ndarray) -> np.ndarray:
+    """``camera.rays(uv)``; where cv2 lacks ``undistortPointsIter`` (OpenCV 5), the same
+    iterative undistortion through ``cv2.undistortPoints(..., criteria)``."""
+    try:
+        return camera.rays(uv)
+    except AttributeError:
+        import cv2
+
+        pts = cv2.undistortPoints(
+            np.asarray(uv, dtype=float).reshape(-1, 1, 2), camera.K,
+            np.asarray(camera.distortion, dtype=float),
+            criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12),
+        ).reshape(-1, 2)
+        return np.concatenate([pts, np.ones((len(pts), 1))], axis=1)
+
+
+def _check_visible(name: str, camera: PinholeCamera, plane: GroundPlane) -> None:
+    """The plane must lie in front of the camera and be hit by every ray of the region."""
+    n = plane.normal_array()
+    if n[2] <= MIN_NORMAL_Z:
+        raise _fail(name, f"the ground plane is not in front of the camera (normal z = {n[2]:.3g}, "
+                          f"must be > {MIN_NORMAL_Z:g}: the normal points from the camera to the "
+                          "ground); check normal/pitch_deg")
+    x0, y0, x1, y1 = plane.region_or_full(camera.width, camera.height)
+    # Sample the region's border (pixel centres): corners suffice without distortion,
+    # where n . ray is affine in the pixel; the edge samples cover distorted cameras.
+    us = np.unique(np.linspace(x0, x1 - 1, 9).round())
+    vs = np.unique(np.linspace(y0, y1 - 1, 9).round())
+    border = np.concatenate([
+        np.stack([us, np.full_like(us, y0)], 1), np.stack([us, np.full_like(us, y1 - 1)], 1),
+        np.stack([np.full_like(vs, x0), vs], 1), np.stack([np.full_like(vs, x1 - 1), vs], 1),
+    ])
+    shown = f"[{x0}, {y0}, {x1}, {y1}]"
+    try:
+        with np.errstate(all="ignore"):
+            rays = _rays(camera, border)
+    except Exception:  # cv2.error from undistortion of absurd coefficients
+        rays = np.full((len(border), 3), np.nan)
+    if not np.all(np.isfinite(rays)):
+        raise _fail(name, "camera.distortion cannot be inverted over ground.region "
+                          f"{shown}; check the distortion coefficients")
+    with np.errstate(all="ignore"):
+        dots = rays @ n
+    worst = int(np.argmin(dots))
+    u, v = int(border[worst, 0]), int(border[worst, 1])
+    if not dots[worst] > MIN_RAY_DOT:
+        raise _fail(name, f"the ground plane is not visible in region {shown} (behind the camera or "
+                          f"parallel to the view at pixel ({u}, {v})); check normal/pitch_deg, or "
+                          "set ground.region to the part of the image showing the ground")
+    if dots[worst] < 1.0 / MAX_DEPTH_RATIO:
+        raise _fail(name, f"the ground plane is too oblique in region {shown}: its depth at pixel "
+                          f"({u}, {v}) is {1.0 / dots[worst]:.3g} times the plane distance "
+                          f"(limit {MAX_DEPTH_RATIO:g}); check normal/pitch_deg, or move "
+                          "ground.region's top edge down")
+
+
+def _parse(data: Any, name: str, base_dir: Path) -> tuple[PinholeCamera, GroundPlane]:
+    if data is None:
+        raise _fail(name, "the file is empty; it needs 'camera:' and 'ground:' sections")
+    if not isinstance(data, dict):
+        raise _fail(name, f"expected a mapping with 'camera:' and 'ground:' sections, got {_show(data)}")
+    _check_keys(name, data, TOP_KEYS, "")
+    if "camera" in data and "camera_file" in data:
+        raise _fail(name, "give either 'camera' or 'camera_file', not both")
+    if "camera" not in data and "camera_file" not in data:
+        raise _fail(name, "missing 'camera' section (or 'camera_file' naming a ROS camera_info YAML)")
+    if "ground" not in data:
+        raise _fail(name, "missing 'ground' section (normal + distance, or height + pitch_deg)")
+    if "camera" in data:
+        camera = _camera_section(name, data["camera"])
+    else:
+        camera = _camera_info(name, base_dir, data["camera_file"])
+    ground = _ground_section(name, data["ground"], camera)
+    return camera, ground
+
+
+# ----------------------------------------------------------------------------- public
+
+
+def load_init(path: Path) -> InitConfig:
+    """Read and validate an ``init.yaml``; raises ConfigError (one line) on any problem."""
+    path = Path(path)
+    name = str(path)
+    if path.is_dir():
+        raise _fail(name, "is a directory; expected the init.yaml file")
+    data = _read_yaml(path, name, "the init file")
+    camera, ground = _parse(data, name, path.parent)
+    return InitConfig(camera=camera, ground=ground, path=path)
+
+
+def check_frame_size(cfg: InitConfig, width: int, height: int, frame_path: Path) -> None:
+    """ConfigError unless the frames are as large as the configured camera."""
+    cam = cfg.camera
+    if (cam.width, cam.height) != (int(width), int(height)):
+        raise ConfigError(f"{cfg.path}: camera is {cam.width}x{cam.height} but frames are "
+                          f"{int(width)}x{int(height)} ({frame_path})")
+
+
+def _yaml_float(x: float) -> str:
+    """A float as a YAML 1.1 float literal that round-trips exactly (1e-20 -> 1.0e-20)."""
+    s = repr(float(x))
+    if "e" in s:
+        mantissa, exponent = s.split("e")
+        if "." not in mantissa:
+            mantissa += ".0"
+        if exponent[0] not in "+-":
+            exponent = "+" + exponent
+        s = f"{mantissa}e{exponent}"
+    elif "." not in s:
+        s += ".0"
+    return s
+
+
+def _flow(values, fmt) -> str:
+    return "[" + ", ".join(fmt(v) for v in values) + "]"
+
+
+def dump_init(path: Path, camera: PinholeCamera, ground: GroundPlane) -> None:
+    """Write ``camera`` and ``ground`` as an init.yaml (SPEC format, normal + distance form),
+    atomically. Raises ConfigError, writing nothing, if they would not load back."""
+    path = Path(path)
+    name = str(path)
+    numbers = [camera.fx, camera.fy, camera.cx, camera.cy, *camera.distortion,
+               *ground.normal, ground.distance]
+    try:
+        finite = all(math.isfinite(float(v)) for v in numbers)
+    except (TypeError, ValueError, OverflowError):
+        finite = False
+    if not finite:
+        raise _fail(name, "cannot write a camera or ground plane with non-numeric or non-finite values")
+    lines = [
+        "# monovo initial-pose file: camera intrinsics and the ground plane at frame 0",
+        "camera:",
+        f"  width: {int(camera.width)}",
+        f"  height: {int(camera.height)}",
+        f"  fx: {_yaml_float(camera.fx)}",
+        f"  fy: {_yaml_float(camera.fy)}",
+        f"  cx: {_yaml_float(camera.cx)}",
+        f"  cy: {_yaml_float(camera.cy)}",
+        f"  distortion: {_flow(camera.distortion, _yaml_float)}",
+        "ground:",
+        f"  normal: {_flow(ground.normal, _yaml_float)}",
+        f"  distance: {_yaml_float(ground.distance)}",
+    ]
+    if ground.region is not None:
+        lines.append(f"  region: {_flow(ground.region, lambda v: str(int(v)))}")
+    text = "\n".join(lines) + "\n"
+    # Validate exactly what will be read back.
+    _parse(yaml.load(text, Loader=_UniqueKeyLoader), name, path.parent)
+    atomic_write_text(path, text)

@@ -1,0 +1,311 @@
+"""Input sequences (SPEC "Input: a sequence"): where file paths stop and grey images start.
+
+A sequence is a directory of image files (``IMAGE_EXTENSIONS``, case-insensitive) in
+natural-sort order, plus an optional ``times.txt`` (one timestamp in seconds per line,
+one line per frame). Other files, and hidden files such as macOS ``._frame.png``
+companions, are ignored. Frames are decoded one at a time into float32 grey images on a
+0..255 scale, whatever their depth (8/16 bit, float), colour layout (grey, BGR, BGRA,
+palette) or format. Every problem is an :class:`~monovo_cli.errors.InputError` with one
+line naming the file.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import os
+import re
+import sys
+import threading
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from monovo_cli.errors import InputError
+
+IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".pgm", ".bmp")
+TIMES_FILE = "times.txt"
+FRAMES_SUBDIR = "frames"
+INIT_FILE = "init.yaml"
+
+_CANNOT_DECODE = "cannot decode image (empty, truncated or not an image)"
+_DIGITS = re.compile(r"([0-9]+)")
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One decoded frame: its position in the sequence, time (s), file and grey image."""
+
+    index: int
+    timestamp: float
+    path: Path
+    image: np.ndarray  # (H, W) float32 grey, 0..255
+
+
+def natural_key(name: str) -> tuple:
+    """Sort key putting ``frame2.png`` before ``frame10.png`` (case-insensitive, then exact)."""
+    parts = _DIGITS.split(name)
+    # split() alternates text, number, text, ...: positions always hold the same type.
+    key = tuple(int(p) if i % 2 else p.casefold() for i, p in enumerate(parts))
+    return (key, name)
+
+
+def _is_image_name(name: str) -> bool:
+    return not name.startswith(".") and name.lower().endswith(IMAGE_EXTENSIONS)
+
+
+def _list_images(directory: Path) -> list[Path]:
+    try:
+        entries = list(directory.iterdir())
+    except OSError as exc:
+        raise InputError(f"{directory}: cannot list the directory ({exc.strerror or exc})") from None
+    files = [p for p in entries if _is_image_name(p.name) and p.is_file()]
+    return sorted(files, key=lambda p: natural_key(p.name))
+
+
+def resolve_sequence(path: Path) -> Path:
+    """The directory holding the frames: ``path`` itself, or ``path/frames`` when ``path``
+    is a sequence folder as written by ``monovo synth`` (no images of its own)."""
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"{path}: no such directory (expected a directory of frames, "
+                         f"or a folder holding {FRAMES_SUBDIR}/)")
+    if not path.is_dir():
+        raise InputError(f"{path}: is a file, expected a directory of frames "
+                         f"(or a folder holding {FRAMES_SUBDIR}/)")
+    sub = path / FRAMES_SUBDIR
+    if sub.is_dir() and not _list_images(path):
+        return sub
+    return path
+
+
+def find_init_yaml(seq: Path) -> Path | None:
+    """``init.yaml`` in ``seq``, else in its parent when ``seq`` is a ``frames/`` directory."""
+    seq = Path(seq)
+    candidates = [seq / INIT_FILE]
+    if seq.name == FRAMES_SUBDIR:
+        candidates.append(seq.parent / INIT_FILE)
+    for c in candidates:
+        if c.is_file():
+            return c
+    return None
+
+
+class _QuietState:
+    """Reference count of the decodes in flight: the first silences, the last restores."""
+
+    lock = threading.Lock()
+    depth = 0
+    saved_fd: int | None = None
+    log_level: int | None = None
+
+
+def _silence() -> None:
+    with _QuietState.lock:
+        _QuietState.depth += 1
+        if _QuietState.depth > 1:
+            return
+        _QuietState.log_level = cv2.utils.logging.getLogLevel()
+        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+        try:
+            sys.stderr.flush()
+        except (AttributeError, OSError, ValueError):
+            pass
+        try:
+            saved = os.dup(2)
+        except OSError:  # no usable fd 2: nothing to protect
+            return
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            try:
+                os.dup2(devnull, 2)
+            finally:
+                os.close(devnull)
+        except OSError:
+            os.close(saved)
+            return
+        _QuietState.saved_fd = saved
+
+
+def _unsilence() -> None:
+    with _QuietState.lock:
+        _QuietState.depth -= 1
+        if _QuietState.depth > 0:
+            return
+        if _QuietState.saved_fd is not None:
+            os.dup2(_QuietState.saved_fd, 2)
+            os.close(_QuietState.saved_fd)
+            _QuietState.saved_fd = None
+        if _QuietState.log_level is not None:
+            cv2.utils.logging.setLogLevel(_QuietState.log_level)
+            _QuietState.log_level = None
+
+
+@contextlib.contextmanager
+def _quiet_native_stderr() -> Iterator[None]:
+    """Silence OpenCV's log and native codecs (libpng prints straight to fd 2) while decoding,
+    so that a bad frame yields one clean error line on stderr. Concurrent decodes (threads)
+    share one redirection."""
+    _silence()
+    try:
+        yield
+    finally:
+        _unsilence()
+
+
+def _to_gray(img: np.ndarray, path: Path) -> np.ndarray:
+    """float32 grey on a 0..255 scale from whatever cv2.IMREAD_UNCHANGED returned."""
+    if img.ndim == 3 and img.shape[2] == 1:
+        img = img[:, :, 0]
+    if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] not in (2, 3, 4)):
+        raise InputError(f"{path}: unsupported image layout {img.shape} "
+                         "(use grey, grey+alpha, colour or colour+alpha images)")
+    if img.dtype == np.uint8:
+        f = img.astype(np.float32)
+    elif img.dtype == np.uint16:
+        f = img.astype(np.float32) * np.float32(255.0 / 65535.0)
+    elif img.dtype in (np.float32, np.float64):
+        f = img.astype(np.float32)
+        if not np.all(np.isfinite(f)):
+            raise InputError(f"{path}: float image contains NaN or infinite pixels")
+        lo, hi = float(f.min()), float(f.max())
+        if lo >= 0.0 and hi <= 1.0:
+            f = f * np.float32(255.0)
+        elif not (lo >= 0.0 and hi <= 255.0):
+            raise InputError(f"{path}: float image values span [{lo:g}, {hi:g}]; "
+                             "expected 0..1 or 0..255 (or use 8/16-bit images)")
+    else:
+        raise InputError(f"{path}: unsupported pixel type {img.dtype} "
+                         "(use 8- or 16-bit unsigned, or float, images)")
+    if f.ndim == 3:
+        channels = f.shape[2]
+        if channels == 2:  # grey + alpha
+            f = f[:, :, 0]
+        else:  # usual luma weights 0.299 R + 0.587 G + 0.114 B, alpha ignored
+            code = cv2.COLOR_BGR2GRAY if channels == 3 else cv2.COLOR_BGRA2GRAY
+            f = cv2.cvtColor(np.ascontiguousarray(f), code)
+    return np.ascontiguousarray(f, dtype=np.float32)
+
+
+def decode_gray(data: bytes | np.ndarray, path: Path) -> np.ndarray:
+    """Decode encoded image bytes (any format cv2 reads) to float32 grey; ``path`` names
+    the source in errors."""
+    buf = np.frombuffer(data, dtype=np.uint8) if isinstance(data, (bytes, bytearray)) else data
+    if buf.size == 0:
+        raise InputError(f"{path}: {_CANNOT_DECODE}")
+    with _quiet_native_stderr():
+        try:
+            img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
+        except (cv2.error, MemoryError, ValueError, OverflowError):
+            img = None
+    if img is None or img.size == 0:
+        raise InputError(f"{path}: {_CANNOT_DECODE}")
+    return _to_gray(img, path)
+
+
+def read_gray(path: Path) -> np.ndarray:
+    """Read one image file as a (H, W) float32 grey image on a 0..255 scale
+    (16-bit scaled by 255/65535, float 0..1 by 255). Works with non-ASCII paths."""
+    path = Path(path)
+    try:
+        data = np.fromfile(path, dtype=np.uint8)
+    except (OSError, ValueError) as exc:
+        reason = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+        raise InputError(f"{path}: cannot read image ({reason})") from None
+    return decode_gray(data, path)
+
+
+def _read_times(path: Path, n_frames: int) -> np.ndarray:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        reason = getattr(exc, "strerror", None) or str(exc).splitlines()[0]
+        raise InputError(f"{path}: cannot read timestamps ({reason})") from None
+    values: list[float] = []
+    for lineno, line in enumerate(text.splitlines(), start=1):
+        s = line.strip()
+        if not s or s.startswith("#"):
+            continue
+        shown = s if len(s) <= 40 else s[:37] + "..."
+        try:
+            t = float(s)
+        except ValueError:
+            raise InputError(f"{path}: line {lineno}: expected one timestamp in seconds, "
+                             f"got {shown!r}") from None
+        if not math.isfinite(t):
+            raise InputError(f"{path}: line {lineno}: timestamp must be finite, got {shown!r}")
+        if values and t <= values[-1]:
+            raise InputError(f"{path}: line {lineno}: timestamps must increase, "
+                             f"{t!r} follows {values[-1]!r}")
+        values.append(t)
+    if len(values) != n_frames:
+        raise InputError(f"{path}: {len(values)} timestamps for {n_frames} frames "
+                         "(need one line per frame)")
+    return np.array(values, dtype=float)
+
+
+class FrameSequence:
+    """The frames of a sequence, listed and checked eagerly, decoded one at a time.
+
+    ``seq_dir`` may be the frames directory or a folder holding ``frames/``
+    (:func:`resolve_sequence`). The frame size is that of the first frame, read once
+    on first use; every frame read must have it.
+    """
+
+    def __init__(self, seq_dir: Path) -> None:
+        self.dir: Path = resolve_sequence(Path(seq_dir))
+        self.paths: list[Path] = _list_images(self.dir)
+        if not self.paths:
+            raise InputError(f"{self.dir}: no image files (accepted: "
+                             f"{' '.join(IMAGE_EXTENSIONS)}, any case)")
+        times = self.dir / TIMES_FILE
+        self.times_path: Path | None = times if times.is_file() else None
+        if self.times_path is not None:
+            self.timestamps: np.ndarray = _read_times(self.times_path, len(self.paths))
+        else:
+            self.timestamps = np.arange(len(self.paths), dtype=float)
+        self._size: tuple[int, int] | None = None  # (width, height)
+
+    def __len__(self) -> int:
+        return len(self.paths)
+
+    def __repr__(self) -> str:
+        return f"FrameSequence({str(self.dir)!r}, {len(self)} frames)"
+
+    def _first_size(self) -> tuple[int, int]:
+        if self._size is None:
+            img = read_gray(self.paths[0])
+            self._size = (img.shape[1], img.shape[0])
+        return self._size
+
+    @property
+    def width(self) -> int:
+        return self._first_size()[0]
+
+    @property
+    def height(self) -> int:
+        return self._first_size()[1]
+
+    def read(self, index: int) -> Frame:
+        """Decode frame ``index`` (0-based); InputError if it is unreadable or of another size."""
+        index = int(index)
+        if not 0 <= index < len(self.paths):
+            raise IndexError(f"frame {index} out of range 0..{len(self.paths) - 1}")
+        path = self.paths[index]
+        img = read_gray(path)
+        h, w = img.shape
+        if self._size is None and index == 0:
+            self._size = (w, h)
+        W, H = self._first_size()
+        if (w, h) != (W, H):
+            raise InputError(f"{path}: frame is {w}x{h} but {self.paths[0].name} is {W}x{H} "
+                             "(all frames must have one size)")
+        return Frame(index=index, timestamp=float(self.timestamps[index]), path=path, image=img)
+
+    def __iter__(self) -> Iterator[Frame]:
+        """The frames in order, decoded one at a time (constant memory)."""
+        for i in range(len(self.paths)):
+            yield self.read(i)
