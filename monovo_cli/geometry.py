@@ -206,9 +206,9 @@ class PinholeCamera:
             import cv2
 
             dist = np.asarray(self.distortion, dtype=float)
-            pts = cv2.undistortPointsIter(
-                uv.reshape(-1, 1, 2), self.K, dist, None, None,
-                (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12),
+            pts = cv2.undistortPoints(
+                uv.reshape(-1, 1, 2), self.K, dist,
+                criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12),
             ).reshape(-1, 2)
         else:
             pts = np.stack([(uv[:, 0] - self.cx) / self.fx, (uv[:, 1] - self.cy) / self.fy], 1)
