@@ -93,6 +93,23 @@ def se3_inv(T: np.ndarray) -> np.ndarray:
     return Ti
 
 
+def orthonormalize(T: np.ndarray) -> np.ndarray:
+    """The rigid transform nearest to ``T`` (4x4): its rotation block projected onto SO(3) by SVD.
+
+    Chained products of poses lose orthonormality to rounding; left alone, the error compounds
+    through the constant-velocity prediction.
+    """
+    U, _, Vt = np.linalg.svd(T[:3, :3])
+    R = U @ Vt
+    if np.linalg.det(R) < 0:
+        U[:, -1] = -U[:, -1]
+        R = U @ Vt
+    out = np.eye(4)
+    out[:3, :3] = R
+    out[:3, 3] = T[:3, 3]
+    return out
+
+
 def make_pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:
     """4x4 transform from a 3x3 rotation and a translation (3,)."""
     T = np.eye(4)

@@ -22,7 +22,7 @@ from monovo_cli.estimate import (
     inlier_fraction,
     residuals,
 )
-from monovo_cli.geometry import PinholeCamera, se3_inv
+from monovo_cli.geometry import PinholeCamera, orthonormalize, se3_inv
 from monovo_cli.ground import (
     Plane,
     default_threshold,
@@ -182,14 +182,15 @@ class Odometry:
         good = self._good(est, key, pyr)
         world_from_prev = self._world_from_prev
         if good:
-            cur_from_key = est.cur_from_key
+            cur_from_key = orthonormalize(est.cur_from_key)
             status = "ok"
         else:
             cur_from_key = (self._velocity if self._velocity is not None else np.eye(4)) \
                 @ self._cur_from_key_prev
             status = "lost"
-        world_from_cur = key.world_from_key @ se3_inv(cur_from_key)
-        prev_from_cur = se3_inv(world_from_prev) @ world_from_cur
+        cur_from_key = orthonormalize(cur_from_key)
+        world_from_cur = orthonormalize(key.world_from_key @ se3_inv(cur_from_key))
+        prev_from_cur = orthonormalize(se3_inv(world_from_prev) @ world_from_cur)
         cov = _output_covariance(est.covariance, se3_inv(cur_from_key)) if good \
             else np.full((6, 6), np.nan)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None)) if good else np.full(6, np.nan)
