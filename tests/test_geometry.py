@@ -1,0 +1,85 @@
+"""SE(3)/SO(3)/quaternion round trips and the pinhole camera."""
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from monovo_cli.geometry import (
+    PinholeCamera,
+    matrix_from_quat,
+    orthonormalize,
+    quat_from_matrix,
+    se3_exp,
+    se3_inv,
+    se3_log,
+    so3_exp,
+    so3_log,
+)
+from monovo_cli.ground import Plane
+
+twists = st.lists(st.floats(-3.0, 3.0), min_size=6, max_size=6).map(np.array)
+
+
+@settings(max_examples=300, deadline=None)
+@given(twists)
+def test_se3_exp_log_round_trip(xi):
+    if np.linalg.norm(xi[3:]) >= np.pi - 1e-3:
+        xi = xi.copy()
+        xi[3:] *= (np.pi - 1e-2) / np.linalg.norm(xi[3:])
+    T = se3_exp(xi)
+    np.testing.assert_allclose(se3_log(T), xi, atol=1e-8)
+    np.testing.assert_allclose(se3_exp(se3_log(T)), T, atol=1e-10)
+
+
+@settings(max_examples=300, deadline=None)
+@given(twists)
+def test_quaternion_round_trip_and_sign(xi):
+    R = so3_exp(xi[3:])
+    q = quat_from_matrix(R)
+    assert q[3] >= 0
+    assert abs(np.linalg.norm(q) - 1) < 1e-12
+    np.testing.assert_allclose(matrix_from_quat(q), R, atol=1e-12)
+
+
+def test_so3_log_near_pi():
+    w = np.array([0.3, -0.5, 0.81])
+    w = w / np.linalg.norm(w) * (np.pi - 1e-7)
+    np.testing.assert_allclose(so3_log(so3_exp(w)), w, atol=1e-6)
+
+
+def test_inverse_and_orthonormalize():
+    rng = np.random.default_rng(0)
+    T = se3_exp(rng.normal(size=6))
+    np.testing.assert_allclose(se3_inv(T) @ T, np.eye(4), atol=1e-12)
+    bent = T.copy()
+    bent[:3, :3] *= 1.001
+    fixed = orthonormalize(bent)
+    np.testing.assert_allclose(fixed[:3, :3].T @ fixed[:3, :3], np.eye(3), atol=1e-12)
+    np.testing.assert_allclose(fixed, T, atol=1e-9)
+
+
+def test_quaternion_of_known_rotation():
+    q = quat_from_matrix(so3_exp([0, 0, np.pi / 2]))
+    np.testing.assert_allclose(q, [0, 0, np.sqrt(0.5), np.sqrt(0.5)], atol=1e-12)
+
+
+@pytest.mark.parametrize("level", [0, 1, 3])
+def test_scaled_camera_follows_pyrdown_pixel_centres(level):
+    cam = PinholeCamera(688, 544, 600.0, 590.0, 343.5, 271.5)
+    c = cam.scaled(level)
+    X = np.array([[0.3, -0.2, 4.0], [-1.0, 0.5, 7.0]])
+    s = 0.5 ** level
+    np.testing.assert_allclose(c.project(X), (cam.project(X) + 0.5) * s - 0.5, atol=1e-12)
+
+
+def test_plane_transform_and_ray_intersection():
+    rng = np.random.default_rng(3)
+    plane = Plane(np.array([0.0, np.sqrt(0.5), np.sqrt(0.5)]), 1.5)
+    cam = PinholeCamera(64, 48, 50.0, 50.0, 31.5, 23.5)
+    X = plane.intersect(cam.rays(rng.uniform(0, 40, (20, 2))))
+    np.testing.assert_allclose(X @ plane.normal, 1.5, atol=1e-12)
+    T = se3_exp(rng.normal(size=6) * 0.2)
+    moved = plane.in_frame(T)
+    Xb = X @ T[:3, :3].T + T[:3, 3]
+    np.testing.assert_allclose(Xb @ moved.normal, moved.distance, atol=1e-12)
