@@ -18,7 +18,6 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import cv2  # noqa: E402
-import numpy as np  # noqa: E402
 
 from benchmarks.common import final_drift, machine  # noqa: E402
 from monovo_cli.odometry import TrackOptions  # noqa: E402

@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import machine, motion_errors
-from monovo_cli.frames import FrameSequence
 from monovo_cli.config import load_init
+from monovo_cli.frames import FrameSequence
 from monovo_cli.ground import Plane
 from monovo_cli.odometry import TrackOptions, track
 from monovo_cli.outputs import read_motion_csv
