@@ -27,6 +27,12 @@ and composes on SE(3): T <- T exp(-xi^). Iterations stop when the mean squared
 difference (eq. 10.3) falls by less than delta_2 (relative), the update moves the points
 by less than ``step_tolerance_px``, or it rises (the step is then halved, then refused).
 This runs coarse to fine over an image pyramid.
+
+Beyond the paper: an affine brightness model ``I_cur ~ gain I_key + bias`` is estimated
+jointly (two more columns ``(I_i, 1)`` in O, section "photometric" of docs/algorithm.md),
+the weights W come from a Huber (or Tukey) M-estimator with the scale from the residuals'
+median absolute deviation, and the covariance of the estimate is sigma^2 (O^T W O)^-1 with
+sigma^2 from the weighted residuals.
 """
 
 from __future__ import annotations
@@ -44,12 +50,13 @@ from monovo_cli.ground import LevelPoints
 class EstimatorOptions:
     """Gauss-Newton settings. ``min_msd_decrease`` is the paper's delta_2 (relative)."""
 
-    max_iterations: int = 40
+    max_iterations: int = 30
     min_msd_decrease: float = 1e-6
-    step_tolerance_px: float = 5e-4
+    step_tolerance_px: float = 1e-3
     robust: str = "huber"            # "huber", "tukey" or "none"
     huber_k: float = 1.345
     tukey_c: float = 4.685
+    photometric: bool = True
     min_valid_points: int = 20
 
 
@@ -80,49 +87,92 @@ def sample_bilinear(image: np.ndarray, u: np.ndarray, v: np.ndarray) -> tuple[np
     valid = (u >= 0.0) & (v >= 0.0) & (u <= w - 1.0) & (v <= h - 1.0)
     u = np.where(valid, u, 0.0)
     v = np.where(valid, v, 0.0)
-    x0 = np.minimum(u.astype(np.int64), w - 2)
-    y0 = np.minimum(v.astype(np.int64), h - 2)
+    x0 = np.minimum(u.astype(np.int32), w - 2)
+    y0 = np.minimum(v.astype(np.int32), h - 2)
     ax = (u - x0).astype(np.float32)
     ay = (v - y0).astype(np.float32)
     idx = y0 * w + x0
     flat = image.ravel()
-    p00 = flat[idx]
-    p01 = flat[idx + 1]
-    p10 = flat[idx + w]
-    p11 = flat[idx + w + 1]
+    p00 = flat.take(idx)
+    p01 = flat.take(idx + 1)
+    p10 = flat.take(idx + w)
+    p11 = flat.take(idx + (w + 1))
     top = p00 + ax * (p01 - p00)
     bot = p10 + ax * (p11 - p10)
     return top + ay * (bot - top), valid
 
 
-def robust_weights(r: np.ndarray, kind: str, *, huber_k: float, tukey_c: float) -> tuple[np.ndarray, float]:
-    """IRLS weights (N,) for residuals ``r`` and the robust scale (MAD, grey levels)."""
-    if kind == "none" or len(r) == 0:
-        return np.ones_like(r), float(np.sqrt(np.mean(r * r))) if len(r) else 0.0
-    scale = 1.4826 * float(np.median(np.abs(r)))
-    scale = max(scale, 1e-3)
-    a = np.abs(r) / scale
+def robust_weights(r: np.ndarray, kind: str, *, huber_k: float, tukey_c: float,
+                   scale: float | None = None) -> tuple[np.ndarray, float]:
+    """IRLS weights (N,) float32 for residuals ``r`` and the robust scale (MAD, grey levels)."""
+    if len(r) == 0:
+        return np.ones(0, np.float32), 0.0
+    if scale is None:
+        scale = max(1.4826 * float(np.median(np.abs(r))), 1e-3)
+    if kind == "none":
+        return np.ones(len(r), np.float32), scale
+    a = np.abs(r) * np.float32(1.0 / scale)
     if kind == "huber":
-        w = np.where(a <= huber_k, 1.0, huber_k / np.maximum(a, 1e-12))
+        w = np.minimum(np.float32(1.0), np.float32(huber_k) / np.maximum(a, np.float32(1e-12)))
     elif kind == "tukey":
-        q = np.clip(1.0 - (a / tukey_c) ** 2, 0.0, None)
+        q = np.clip(1.0 - a * a * np.float32(1.0 / tukey_c ** 2), 0.0, None)
         w = q * q
     else:
         raise ValueError(f"unknown robust estimator {kind!r}")
-    return w.astype(np.float64), scale
+    return w.astype(np.float32, copy=False), scale
+
+
+def _rho_mean(r: np.ndarray, scale: float, opts: EstimatorOptions) -> float:
+    """Mean robust cost of residuals ``r`` at a fixed ``scale``."""
+    if len(r) == 0:
+        return float("inf")
+    a = np.abs(r) * np.float32(1.0 / scale)
+    if opts.robust == "huber":
+        k = np.float32(opts.huber_k)
+        rho = np.where(a <= k, 0.5 * a * a, k * a - 0.5 * k * k)
+    elif opts.robust == "tukey":
+        c = opts.tukey_c
+        q = np.clip(1.0 - (a / c) ** 2, 0.0, None)
+        rho = (c * c / 6.0) * (1.0 - q ** 3)
+    else:
+        rho = 0.5 * a * a
+    return float(np.mean(rho, dtype=np.float64))
 
 
 @dataclass(frozen=True)
 class KeyLevel:
-    """A keyframe's points at one level with their constant observation matrix ``O`` (N, 6)."""
+    """A keyframe's points at one level with their constant observation matrix.
+
+    ``J`` (N, 8) float32 holds the geometric rows o_i (grey levels per m / per rad) and the
+    photometric columns (I_i, 1); ``probes`` (4, 3) are the extreme points, used to measure
+    how far an update moves the image.
+    """
 
     points: LevelPoints
-    O: np.ndarray
+    J: np.ndarray
+    probes: np.ndarray
 
     @classmethod
     def from_points(cls, points: LevelPoints) -> KeyLevel:
         cam = points.camera
-        return cls(points, observation_matrix(points.X, points.grad, cam.fx, cam.fy))
+        O = observation_matrix(points.X, points.grad, cam.fx, cam.fy)
+        J = np.empty((len(points), 8), np.float32)
+        J[:, :6] = O
+        J[:, 6] = points.intensity
+        J[:, 7] = 1.0
+        if len(points):
+            uv = points.uv
+            ext = [int(np.argmin(uv[:, 0])), int(np.argmax(uv[:, 0])),
+                   int(np.argmin(uv[:, 1])), int(np.argmax(uv[:, 1]))]
+            probes = points.X[ext]
+        else:
+            probes = np.zeros((0, 3))
+        return cls(points, J, probes)
+
+    @property
+    def O(self) -> np.ndarray:
+        """The paper's observation matrix (N, 6)."""
+        return self.J[:, :6]
 
 
 @dataclass(frozen=True)
@@ -131,7 +181,9 @@ class Estimate:
 
     ``cur_from_key`` 4x4; ``covariance`` (6, 6) of the twist ``xi`` (m, rad) with
     ``key_from_cur_true = exp(xi^) key_from_cur``; ``msd`` the final mean squared intensity
-    difference at the finest level's valid points (grey levels^2).
+    difference at the finest level's valid points (grey levels^2, after the brightness
+    model); ``gain``/``bias`` the brightness model; ``condition`` the condition number of the
+    scale-normalised normal matrix.
     """
 
     cur_from_key: np.ndarray
@@ -142,101 +194,117 @@ class Estimate:
     valid_fraction: float
     converged: bool
     condition: float
+    gain: float = 1.0
+    bias: float = 0.0
+    residuals: np.ndarray | None = None
+    valid: np.ndarray | None = None
 
 
-def residuals(level: KeyLevel, image: np.ndarray, T: np.ndarray):
+def residuals(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float = 1.0,
+              bias: float = 0.0) -> tuple[np.ndarray, np.ndarray, None]:
+    """FD (eq. 10.2) at one level: ``I_cur(pi(T X_i)) - (gain I_i + bias)`` (N,) float32, validity (N,)."""
     pts = level.points
     cam = pts.camera
-    Xc = pts.X @ T[:3, :3].T + T[:3, 3]
+    Xc = pts.X @ T[:3, :3].T
+    Xc += T[:3, 3]
     z = Xc[:, 2]
     in_front = z > 1e-9
     with np.errstate(divide="ignore", invalid="ignore"):
-        uv = cam.project(np.where(in_front[:, None], Xc, np.nan))
-    vals, valid = sample_bilinear(image, uv[:, 0], uv[:, 1])
+        if cam.has_distortion:
+            uv = cam.project(np.where(in_front[:, None], Xc, np.nan))
+            u, v = uv[:, 0], uv[:, 1]
+        else:
+            iz = np.where(in_front, 1.0 / z, np.nan)
+            u = Xc[:, 0] * iz
+            u *= cam.fx
+            u += cam.cx
+            v = Xc[:, 1] * iz
+            v *= cam.fy
+            v += cam.cy
+    vals, valid = sample_bilinear(image, u, v)
     valid &= in_front
-    r = vals.astype(np.float64) - pts.intensity
-    return r, valid, uv
+    if gain != 1.0 or bias != 0.0:
+        vals -= np.float32(gain) * pts.intensity + np.float32(bias)
+    else:
+        vals -= pts.intensity
+    return vals, valid, None
 
 
-def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, opts: EstimatorOptions,
-                 step_tol: float, final: bool):
-    """Gauss-Newton iterations at one level. Returns (T, iterations, msd, valid, H, r, w)."""
-    O = level.O
-    r, valid, uv = residuals(level, image, T)
+def _probe_move(level: KeyLevel, T0: np.ndarray, T1: np.ndarray) -> float:
+    """Largest image displacement (px) of the level's probe points between poses T0 and T1."""
+    P = level.probes
+    if len(P) == 0:
+        return 0.0
+    a = P @ T0[:3, :3].T + T0[:3, 3]
+    b = P @ T1[:3, :3].T + T1[:3, 3]
+    if np.any(a[:, 2] <= 1e-9) or np.any(b[:, 2] <= 1e-9):
+        return float("inf")
+    cam = level.points.camera
+    d = cam.project(b) - cam.project(a)
+    return float(np.max(np.abs(d)))
+
+
+@dataclass
+class _LevelResult:
+    T: np.ndarray
+    gain: float
+    bias: float
+    iterations: int
+    r: np.ndarray
+    valid: np.ndarray
+    w: np.ndarray
+    H: np.ndarray
+
+
+def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float, bias: float,
+                 opts: EstimatorOptions, step_tol: float, max_iterations: int) -> _LevelResult:
+    """Gauss-Newton / IRLS iterations at one pyramid level."""
+    npar = 8 if opts.photometric else 6
+    J = level.J if opts.photometric else level.J[:, :6]
+    r, valid, _ = residuals(level, image, T, gain, bias)
+    n = len(r)
+    w = np.zeros(n, np.float32)
+    H = np.eye(npar)
     iterations = 0
-    H = np.eye(6)
-    w_full = np.zeros(len(r))
-    prev_msd = np.inf
-    for _ in range(opts.max_iterations):
-        nv = int(valid.sum())
-        if nv < max(opts.min_valid_points, 6):
-            break
+    min_valid = max(opts.min_valid_points, npar)
+    for _ in range(max_iterations):
         rv = r[valid]
-        msd = float(np.mean(rv * rv))
-        w, scale = robust_weights(rv, opts.robust, huber_k=opts.huber_k, tukey_c=opts.tukey_c)
-        Ov = O[valid]
-        Ow = Ov * w[:, None]
-        H = Ow.T @ Ov
-        b = Ow.T @ rv
+        if len(rv) < min_valid:
+            break
+        wv, scale = robust_weights(rv, opts.robust, huber_k=opts.huber_k, tukey_c=opts.tukey_c)
+        w = np.zeros(n, np.float32)
+        w[valid] = wv
+        Jw = J * w[:, None]
+        H = (Jw.T @ J).astype(np.float64)
+        b = (Jw.T @ r).astype(np.float64)
         try:
-            xi = np.linalg.solve(H, b)
+            p = np.linalg.solve(H, b)
         except np.linalg.LinAlgError:
             break
-        if not np.all(np.isfinite(xi)):
+        if not np.all(np.isfinite(p)):
             break
         iterations += 1
-        cost = _robust_cost(rv, w, scale, opts)
-        accepted = False
+        cost = _rho_mean(rv, scale, opts)
         for _halving in range(4):
-            T_new = T @ se3_exp(-xi)
-            r_new, valid_new, uv_new = residuals(level, image, T_new)
-            both = valid & valid_new
-            if both.sum() < max(opts.min_valid_points, 6):
-                xi = 0.5 * xi
-                continue
-            new_cost = _robust_cost_at(r_new[valid_new], scale, opts)
-            if new_cost <= cost * (1.0 + 1e-9):
-                accepted = True
+            T_new = T @ se3_exp(-p[:6])
+            g_new = gain + (p[6] if npar == 8 else 0.0)
+            b_new = bias + (p[7] if npar == 8 else 0.0)
+            r_new, valid_new, _ = residuals(level, image, T_new, g_new, b_new)
+            if np.count_nonzero(valid_new) >= min_valid and \
+                    _rho_mean(r_new[valid_new], scale, opts) <= cost * (1.0 + 1e-7):
                 break
-            xi = 0.5 * xi
-        if not accepted:
+            p = 0.5 * p
+        else:
             break
-        move = float(np.mean(np.abs(uv_new[both] - uv[both]).sum(axis=1)))
-        T, r, valid, uv = T_new, r_new, valid_new, uv_new
-        new_msd = float(np.mean(r[valid] ** 2))
-        rel = (prev_msd - new_msd) / max(prev_msd, 1e-12) if np.isfinite(prev_msd) else 1.0
-        prev_msd = min(prev_msd, msd)
+        move = _probe_move(level, T, T_new)
+        msd_old = float(np.mean(rv * rv, dtype=np.float64))
+        T, gain, bias, r, valid = T_new, g_new, b_new, r_new, valid_new
+        rn = r[valid]
+        msd_new = float(np.mean(rn * rn, dtype=np.float64))
+        rel = (msd_old - msd_new) / max(msd_old, 1e-12)
         if move < step_tol or (0.0 <= rel < opts.min_msd_decrease and move < 10 * step_tol):
             break
-    if final:
-        rv = r[valid]
-        w, _ = robust_weights(rv, opts.robust, huber_k=opts.huber_k, tukey_c=opts.tukey_c)
-        w_full = np.zeros(len(r))
-        w_full[valid] = w
-        Ov = level.O[valid]
-        H = (Ov * w[:, None]).T @ Ov
-    return T, iterations, r, valid, H, w_full
-
-
-def _rho(a: np.ndarray, opts: EstimatorOptions) -> np.ndarray:
-    if opts.robust == "huber":
-        k = opts.huber_k
-        return np.where(a <= k, 0.5 * a * a, k * a - 0.5 * k * k)
-    if opts.robust == "tukey":
-        c = opts.tukey_c
-        q = np.clip(1.0 - (a / c) ** 2, 0.0, None)
-        return (c * c / 6.0) * (1.0 - q ** 3)
-    return 0.5 * a * a
-
-
-def _robust_cost(rv: np.ndarray, w: np.ndarray, scale: float, opts: EstimatorOptions) -> float:
-    return _robust_cost_at(rv, scale, opts)
-
-
-def _robust_cost_at(rv: np.ndarray, scale: float, opts: EstimatorOptions) -> float:
-    if len(rv) == 0:
-        return np.inf
-    return float(np.mean(_rho(np.abs(rv) / scale, opts)))
+    return _LevelResult(T, gain, bias, iterations, r, valid, w, H)
 
 
 def inlier_fraction(r: np.ndarray, valid: np.ndarray, noise_sigma: float) -> float:
@@ -248,7 +316,8 @@ def inlier_fraction(r: np.ndarray, valid: np.ndarray, noise_sigma: float) -> flo
 
 
 def coarse_search(level: KeyLevel, image: np.ndarray, cur_from_key: np.ndarray, *,
-                  options: EstimatorOptions, noise_sigma: float,
+                  options: EstimatorOptions, noise_sigma: float, gain: float = 1.0,
+                  bias: float = 0.0,
                   angles_deg: Sequence[float] = (-6.0, -3.0, 0.0, 3.0, 6.0),
                   roll_deg: Sequence[float] = (-5.0, 0.0, 5.0)) -> np.ndarray:
     """A start that survives large motions: try a grid of rotations at the top pyramid level.
@@ -257,52 +326,64 @@ def coarse_search(level: KeyLevel, image: np.ndarray, cur_from_key: np.ndarray, 
     ``angles_deg``, about z by ``roll_deg``) is refined with a few Gauss-Newton iterations at
     this level; the one with the most inliers wins. Returns the winning ``cur_from_key``.
     """
-    few = EstimatorOptions(**{**options.__dict__, "max_iterations": 8})
     best, best_score = np.array(cur_from_key, dtype=np.float64), -1.0
     for rz in roll_deg:
         for rx in angles_deg:
             for ry in angles_deg:
                 w = np.radians([rx, ry, rz])
                 T0 = se3_exp(np.r_[0.0, 0.0, 0.0, w]) @ cur_from_key
-                T, _, r, valid, _, _ = _solve_level(level, image, T0, few, 1e-2, final=False)
-                score = inlier_fraction(r, valid, noise_sigma)
+                res = _solve_level(level, image, T0, gain, bias, options, 1e-2, 8)
+                score = inlier_fraction(res.r, res.valid, noise_sigma)
                 if score > best_score:
-                    best, best_score = T, score
+                    best, best_score = res.T, score
     return best
 
 
 def estimate_motion(levels: Sequence[KeyLevel], pyramid: Sequence[np.ndarray],
                     cur_from_key: np.ndarray, *, options: EstimatorOptions | None = None,
+                    gain: float = 1.0, bias: float = 0.0,
                     first_level: int | None = None) -> Estimate:
     """Coarse-to-fine maximum-likelihood pose of the current frame relative to the keyframe.
 
     ``levels[l]`` are the keyframe's points at pyramid level l (finest first) and
     ``pyramid[l]`` the current frame's level-l image (float32). ``cur_from_key`` (4x4) is the
-    initial guess. Levels above ``first_level`` are skipped.
+    initial guess, ``gain``/``bias`` that of the brightness model. Levels above
+    ``first_level`` are skipped.
     """
     opts = options or EstimatorOptions()
     T = np.array(cur_from_key, dtype=np.float64)
     total = 0
     top = len(levels) - 1 if first_level is None else min(first_level, len(levels) - 1)
-    r = valid = w = None
-    H = np.eye(6)
+    res = None
     for lv in range(top, -1, -1):
-        tol = opts.step_tolerance_px * (1.0 if lv == 0 else 20.0)
-        T, it, r, valid, H, w = _solve_level(levels[lv], pyramid[lv], T, opts, tol, final=lv == 0)
-        total += it
-    nv = int(valid.sum())
-    n = len(valid)
-    rv = r[valid]
-    msd = float(np.mean(rv * rv)) if nv else float("inf")
-    wv = w[valid]
-    dof = max(float(wv.sum()) - 6.0, 1.0)
-    sigma2 = float(np.sum(wv * rv * rv)) / dof
-    try:
-        cov = sigma2 * np.linalg.inv(H)
-        eig = np.linalg.eigvalsh(H)
-        cond = float(eig[-1] / max(eig[0], 1e-300))
-    except np.linalg.LinAlgError:
-        cov = np.full((6, 6), np.inf)
-        cond = float("inf")
+        tol = opts.step_tolerance_px * (1.0 if lv == 0 else 10.0)
+        res = _solve_level(levels[lv], pyramid[lv], T, gain, bias, opts, tol, opts.max_iterations)
+        T, gain, bias = res.T, res.gain, res.bias
+        total += res.iterations
+    # Final statistics at the finest level, with the weights of the final residuals.
+    npar = 8 if opts.photometric else 6
+    J = levels[0].J[:, :npar]
+    valid = res.valid
+    rv = res.r[valid]
+    nv = len(rv)
+    msd = float(np.mean(rv * rv, dtype=np.float64)) if nv else float("inf")
+    cov = np.full((6, 6), np.inf)
+    cond = float("inf")
+    if nv >= max(opts.min_valid_points, npar):
+        wv, _ = robust_weights(rv, opts.robust, huber_k=opts.huber_k, tukey_c=opts.tukey_c)
+        Jv = J[valid]
+        H = ((Jv * wv[:, None]).T @ Jv).astype(np.float64)
+        dof = max(float(wv.sum(dtype=np.float64)) - npar, 1.0)
+        sigma2 = float(np.sum(wv * rv * rv, dtype=np.float64)) / dof
+        d = np.sqrt(np.clip(np.diag(H), 1e-300, None))
+        Hn = H / np.outer(d, d)
+        try:
+            eig = np.linalg.eigvalsh(Hn)
+            cond = float(eig[-1] / eig[0]) if eig[0] > 0 else float("inf")
+            cov = sigma2 * np.linalg.inv(H)[:6, :6]
+        except np.linalg.LinAlgError:
+            pass
     converged = bool(nv >= opts.min_valid_points and np.all(np.isfinite(T)))
-    return Estimate(T, cov, msd, total, nv, nv / max(n, 1), converged, cond)
+    return Estimate(T, cov, msd, total, nv, nv / max(len(valid), 1), converged, cond,
+                    float(gain), float(bias), res.r, valid)
+

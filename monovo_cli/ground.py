@@ -123,25 +123,35 @@ def barycentric(X: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndar
     return tri, bary
 
 
-def _even_spread(mag: np.ndarray, ys: np.ndarray, xs: np.ndarray, cap: int,
-                 shape: tuple[int, int]) -> np.ndarray:
-    """Indices of at most ``cap`` candidates, strongest first within cells of an even grid."""
-    if len(mag) <= cap:
-        return np.arange(len(mag))
-    h, w = shape
-    cells = max(1, int(np.sqrt(cap / 8.0)))  # about 8 points per cell when full
-    cw, ch = max(1, -(-w // cells)), max(1, -(-h // cells))
-    cell = (ys // ch) * (cells + 1) + xs // cw
-    order = np.lexsort((-mag, cell))
-    cell_sorted = cell[order]
-    first = np.searchsorted(cell_sorted, cell_sorted, side="left")
-    rank = np.arange(len(order)) - first
-    n_cells = len(np.unique(cell_sorted))
-    quota = max(1, -(-cap // n_cells))
-    keep = order[rank < quota]
-    if len(keep) > cap:
-        keep = keep[np.argsort(-mag[keep], kind="stable")[:cap]]
-    return np.sort(keep)
+def _even_spread(score: np.ndarray, cap: int, area: int, per_block: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of at most ``cap`` pixels with ``score > 0``, spread over the image.
+
+    The image is cut into square blocks sized so that ``per_block`` points per block fill the
+    cap over ``area`` pixels; each block keeps its ``per_block`` strongest candidates, and if
+    that is still more than ``cap`` the strongest overall are kept.
+    """
+    ys, xs = np.nonzero(score > 0)
+    if len(ys) <= cap:
+        return ys, xs
+    h, w = score.shape
+    s = max(2, int(np.sqrt(per_block * area / cap)))
+    hb, wb = -(-h // s), -(-w // s)
+    padded = np.zeros((hb * s, wb * s), np.float32)
+    padded[:h, :w] = score
+    blocks = padded.reshape(hb, s, wb, s).transpose(0, 2, 1, 3).reshape(hb * wb, s * s)
+    q = min(per_block, s * s)
+    top = np.argpartition(-blocks, q - 1, axis=1)[:, :q]
+    vals = np.take_along_axis(blocks, top, axis=1)
+    b = np.repeat(np.arange(hb * wb), q).reshape(hb * wb, q)
+    keep = vals > 0
+    top, vals, b = top[keep], vals[keep], b[keep]
+    if len(vals) > cap:
+        best = np.argpartition(-vals, cap - 1)[:cap]
+        top, b = top[best], b[best]
+    ys = (b // wb) * s + top // s
+    xs = (b % wb) * s + top % s
+    order = np.lexsort((xs, ys))
+    return ys[order], xs[order]
 
 
 def select_points(image: np.ndarray, camera: PinholeCamera, plane: Plane, corners: np.ndarray,
@@ -166,10 +176,8 @@ def select_points(image: np.ndarray, camera: PinholeCamera, plane: Plane, corner
     ok[:, :border] = ok[:, -border:] = False
     if mask is not None:
         ok &= mask
-    ys, xs = np.nonzero(ok)
-    m = mag[ys, xs]
-    keep = _even_spread(m, ys, xs, max_points, (h, w))
-    ys, xs = ys[keep], xs[keep]
+    ys, xs = _even_spread(np.where(ok, mag, 0.0).astype(np.float32), max_points,
+                          max(int(np.count_nonzero(inside)), 1))
     uv = np.stack([xs, ys], 1).astype(np.float64)
     X = plane.intersect(camera.rays(uv))
     good = np.all(np.isfinite(X), axis=1) & (X[:, 2] > 1e-6)

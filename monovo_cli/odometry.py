@@ -20,7 +20,6 @@ from monovo_cli.estimate import (
     coarse_search,
     estimate_motion,
     inlier_fraction,
-    residuals,
 )
 from monovo_cli.geometry import PinholeCamera, orthonormalize, se3_inv
 from monovo_cli.ground import (
@@ -206,8 +205,10 @@ class Odometry:
                            est.points, status, std, cov)
 
     def _score(self, est: Estimate, key: Keyframe, pyr: list[np.ndarray]) -> float:
-        r, valid, _ = residuals(key.levels[0], pyr[0], est.cur_from_key)
-        return inlier_fraction(r, valid, key.noise_sigma) / max(est.valid_fraction, 1e-9)
+        """Share of the in-view points that agree with the estimate within the noise."""
+        if est.residuals is None:
+            return 0.0
+        return inlier_fraction(est.residuals, est.valid, key.noise_sigma) / max(est.valid_fraction, 1e-9)
 
     def _good(self, est: Estimate, key: Keyframe, pyr: list[np.ndarray]) -> bool:
         if not est.converged or not np.all(np.isfinite(est.cur_from_key)):
@@ -231,6 +232,20 @@ class Odometry:
         except TrackingError:
             return  # keep the old model (e.g. a blank frame); try again next frame
         self._cur_from_key_prev = np.eye(4)
+
+    def skip(self, index: int, timestamp: float) -> FrameResult:
+        """Frame ``index`` has no usable image: record it as lost at the constant-velocity
+        prediction (the last good frame's motion repeated) and carry on from there."""
+        key = self._key
+        assert key is not None, "call start() first"
+        velocity = self._velocity if self._velocity is not None else np.eye(4)
+        cur_from_key = orthonormalize(velocity @ self._cur_from_key_prev)
+        world_from_cur = orthonormalize(key.world_from_key @ se3_inv(cur_from_key))
+        prev_from_cur = orthonormalize(se3_inv(self._world_from_prev) @ world_from_cur)
+        self._world_from_prev = world_from_cur
+        self._cur_from_key_prev = cur_from_key
+        return FrameResult(index, timestamp, world_from_cur, prev_from_cur, 0.0, 0, 0, "lost",
+                           np.full(6, np.nan), np.full((6, 6), np.nan))
 
 
 def track(frames: Iterable[tuple[int, float, np.ndarray]], camera: PinholeCamera, plane: Plane,
