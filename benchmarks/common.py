@@ -6,6 +6,7 @@ import datetime
 import os
 import platform
 import subprocess
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -53,3 +54,102 @@ def final_drift(est_world_from_cam: np.ndarray, gt_world_from_cam: np.ndarray) -
     dist = float(np.linalg.norm(steps, axis=1).sum())
     dR = se3_inv(gt_world_from_cam[-1]) @ est_world_from_cam[-1]
     return err, dist, float(np.degrees(np.linalg.norm(so3_log(dR[:3, :3]))))
+
+
+AXES = ("tx (m)", "ty (m)", "tz (m)", "rx (deg)", "ry (deg)", "rz (deg)")
+
+
+def axis_table(rows: list[tuple[str, np.ndarray]], *, digits: int = 5) -> str:
+    """Markdown table: one row of per-axis values (6,) per label, plus the translation and
+    rotation averages (units of ``AXES``)."""
+    lines = ["| | " + " | ".join(AXES) + " | transl. avg (m) | rot. avg (deg) |",
+             "|" + " --- |" * (len(AXES) + 3)]
+    for label, v in rows:
+        v = np.asarray(v, dtype=float)
+        cells = [f"{x:.{digits}f}" for x in v] + [f"{v[:3].mean():.{digits}f}",
+                                                   f"{v[3:].mean():.{digits}f}"]
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def one_core() -> None:
+    """OpenCV on one thread (BLAS/OpenMP are limited in ``benchmarks/__init__.py``)."""
+    import cv2
+
+    cv2.setNumThreads(1)
+
+
+# --------------------------------------------------------------------------- synthetic pairs
+
+
+@dataclass(frozen=True)
+class PairScene:
+    """One pair written by ``synthesize(preset="pairs")`` with the poses it was rendered from.
+
+    ``g_from_cam0`` / ``g_from_cam1`` (4x4) map camera points to the ground frame G, whose
+    plane ``z_G = 0`` is the ground; ``region`` is init.yaml's ``[x0, y0, x1, y1]``.
+    """
+
+    directory: Path
+    g_from_cam0: np.ndarray
+    g_from_cam1: np.ndarray
+    region: tuple[int, int, int, int]
+
+    @property
+    def prev_from_cur(self) -> np.ndarray:
+        """Ground-truth ``T_0_1``."""
+        return se3_inv(self.g_from_cam0) @ self.g_from_cam1
+
+
+def pair_scenes(pairs_dir: Path):
+    """``(camera, texture, [PairScene, ...])`` of a folder written by ``synthesize(preset="pairs")``.
+
+    ``synthesize`` records each pair's motion and plane but not its ground-frame pose (the
+    azimuth and texture origin), which the Cramér–Rao bound needs to re-render the pair. This
+    regenerates them by replaying synthesize's seeded draws (motion stream first of the seed's
+    three spawned streams, one texture origin then ``pair_poses`` per pair) and checks every
+    replayed pair against the folder's ``groundtruth_motion.csv`` and ``init.yaml``; if
+    ``monovo_cli.synth`` changes how it draws, this raises instead of returning wrong poses.
+    """
+    import yaml
+
+    from monovo_cli.config import load_init
+    from monovo_cli.outputs import read_motion_csv
+    from monovo_cli.synth import (
+        GroundTexture,
+        default_camera,
+        ground_in_camera,
+        pair_poses,
+        procedural_texture,
+        procedural_texture_size,
+    )
+
+    pairs_dir = Path(pairs_dir)
+    params = yaml.safe_load((pairs_dir / "synth.yaml").read_text())
+    if params.get("preset") != "pairs" or params.get("texture") or params.get("exposure"):
+        raise ValueError(f"{pairs_dir}: expected pairs with the procedural texture and no exposure change")
+    width, height = params["size"]
+    cam = default_camera(width, height)
+    tex = GroundTexture(procedural_texture(procedural_texture_size(width, height), params["seed"]),
+                        params["metres_per_texel"])
+    if list(tex.shape[::-1]) != list(params["texture_texels"]):
+        raise RuntimeError(f"{pairs_dir}: replayed texture is {tex.shape[::-1]}, synth wrote "
+                           f"{params['texture_texels']}; benchmarks.common.pair_scenes needs updating")
+    motion_rng = np.random.default_rng(np.random.SeedSequence(params["seed"]).spawn(3)[0])
+    period = np.array(tex.shape[::-1], dtype=float) * params["metres_per_texel"]
+    scenes = []
+    for i in range(params["frames"]):
+        origin = tuple(motion_rng.uniform(0.0, 1.0, 2) * period)
+        g0, g1 = pair_poses(cam, motion_rng, max_translation=float(params["max_translation"]),
+                            max_rotation_deg=float(params["max_rotation_deg"]), origin=origin)
+        d = pairs_dir / f"pair_{i:04d}"
+        _, gt, _ = read_motion_csv(d / "groundtruth_motion.csv")
+        cfg = load_init(d / "init.yaml")
+        n, dist = ground_in_camera(g0)
+        if (not np.allclose(se3_inv(g0) @ g1, gt[0], atol=1e-9)
+                or not np.allclose(n, cfg.ground.normal_array(), atol=1e-9)
+                or abs(dist - cfg.ground.distance) > 1e-9):
+            raise RuntimeError(f"{d}: replayed pose differs from the ground truth synth wrote; "
+                               "benchmarks.common.pair_scenes needs updating")
+        scenes.append(PairScene(d, g0, g1, tuple(int(v) for v in cfg.ground.region)))
+    return cam, tex, scenes
