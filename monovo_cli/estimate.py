@@ -198,6 +198,7 @@ class Estimate:
     bias: float = 0.0
     residuals: np.ndarray | None = None
     valid: np.ndarray | None = None
+    finest_iterations: int = 0
 
 
 def residuals(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float = 1.0,
@@ -385,5 +386,5 @@ def estimate_motion(levels: Sequence[KeyLevel], pyramid: Sequence[np.ndarray],
             pass
     converged = bool(nv >= opts.min_valid_points and np.all(np.isfinite(T)))
     return Estimate(T, cov, msd, total, nv, nv / max(len(valid), 1), converged, cond,
-                    float(gain), float(bias), res.r, valid)
+                    float(gain), float(bias), res.r, valid, res.iterations)
 

@@ -1,12 +1,21 @@
-"""The sequence loop: keyframes, pose chaining, re-anchoring, loss detection.
+"""The sequence loop: keyframes, pose chaining, re-anchoring, loss detection and recovery.
 
 Owns the state; does no I/O and no printing. Frames come in one at a time and a
 :class:`FrameResult` goes out for each, so memory does not grow with the sequence.
+
+Each frame is estimated against the current keyframe (the paper's ground model, moved with
+the accumulated motion), so drift grows per keyframe, not per frame. A new keyframe is
+anchored on the current frame when too few of the keyframe's points stay in view or the
+model covers too little of the image; at that moment the plane is re-estimated from the two
+images with the mounting pose as a prior (:mod:`monovo_cli.plane`). A frame whose estimate
+fails the divergence checks is marked ``lost``, carries the constant-velocity prediction,
+and the model is re-anchored on the next good frame.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 
 import cv2
@@ -21,7 +30,7 @@ from monovo_cli.estimate import (
     estimate_motion,
     inlier_fraction,
 )
-from monovo_cli.geometry import PinholeCamera, orthonormalize, se3_inv
+from monovo_cli.geometry import PinholeCamera, orthonormalize, se3_inv, skew, so3_log
 from monovo_cli.ground import (
     Plane,
     default_threshold,
@@ -30,6 +39,7 @@ from monovo_cli.ground import (
     require_points,
     select_points,
 )
+from monovo_cli.plane import PlanePrior, refine_plane_and_motion
 from monovo_cli.pyramid import build_pyramid, num_levels
 
 
@@ -39,9 +49,12 @@ class TrackOptions:
 
     ``threshold`` is the paper's delta_1 (Sobel magnitude, grey levels/px; None: from the
     keyframe's noise); ``max_points`` caps the finest level's observation points (coarser
-    levels get a quarter per level); ``reanchor_fraction``: re-anchor when fewer of the
-    keyframe's points than this stay in view, or the model covers < ``min_footprint`` of
-    the image.
+    levels get a quarter per level). Re-anchor when fewer than ``reanchor_fraction`` of the
+    keyframe's points stay in view or the model covers < ``min_footprint`` of the image.
+    A frame is lost when fewer than ``min_inliers`` of its points agree within the noise,
+    its msd exceeds ``msd_factor`` times the recent median, the normal matrix's condition
+    number exceeds ``max_condition``, the finest level hits the iteration cap, or its motion
+    exceeds ``max_step_m`` / ``max_step_deg``.
     """
 
     levels: int | None = None
@@ -51,6 +64,13 @@ class TrackOptions:
     reanchor_fraction: float = 0.6
     min_footprint: float = 0.2
     min_inliers: float = 0.3
+    msd_factor: float = 6.0
+    max_condition: float = 1e7
+    max_step_m: float | None = None
+    max_step_deg: float | None = None
+    refine_plane: bool = True
+    plane_prior_deg: float = 2.0
+    distance_pull: float = 0.1
     estimator: EstimatorOptions = field(default_factory=EstimatorOptions)
 
 
@@ -69,7 +89,12 @@ class Keyframe:
 
 @dataclass(frozen=True)
 class FrameResult:
-    """One frame's output. Poses are 4x4; ``std`` (6,) m and rad of (tx..rz) of ``prev_from_cur``."""
+    """One frame's output.
+
+    Poses are 4x4: ``world_from_cam`` is T_0_k, ``prev_from_cur`` T_{k-1}_k. ``covariance``
+    (6, 6) and ``std`` (6,) are of (tx, ty, tz, rx, ry, rz) of ``prev_from_cur`` (m, rad;
+    NaN for lost frames). ``gain``/``bias``: brightness relative to the keyframe.
+    """
 
     index: int
     timestamp: float
@@ -81,18 +106,28 @@ class FrameResult:
     status: str
     std: np.ndarray
     covariance: np.ndarray
+    keyframe: int = 0
+    gain: float = 1.0
+    bias: float = 0.0
+    reason: str = ""
 
 
 def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: Plane,
                    region: tuple[int, int, int, int], world_from_key: np.ndarray,
                    options: TrackOptions, *, mask: np.ndarray | None = None,
                    pyramid: list[np.ndarray] | None = None) -> Keyframe:
-    """The ground model of section 10.2.5 on ``image`` (H, W) float32, plane in its camera."""
+    """The ground model of section 10.2.5 on ``image`` (H, W) float32, plane in its camera.
+
+    Raises TrackingError when the frame has too few observation points.
+    """
     n_levels = options.levels or num_levels(camera.width, camera.height)
-    pyr = pyramid if pyramid is not None else build_pyramid(image, n_levels)
+    pyr = pyramid if pyramid is not None and len(pyramid) >= n_levels \
+        else build_pyramid(image, n_levels)
     sigma = estimate_noise_sigma(image)
     threshold = options.threshold if options.threshold is not None else default_threshold(sigma)
     corners = rectangle_corners(camera, plane, region)
+    if not np.all(np.isfinite(corners)) or np.any(corners[:, 2] <= 0):
+        raise TrackingError("the ground plane is not in front of the camera over the region")
     levels = []
     m = mask
     for lv in range(n_levels):
@@ -105,7 +140,7 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
         if lv == 0:
             require_points(pts, minimum=options.min_points, threshold=threshold)
         levels.append(KeyLevel.from_points(pts))
-    # Coarse levels with too few points are dropped: they cannot constrain 6 DoF.
+    # Coarse levels with too few points cannot constrain 6 DoF: drop them.
     while len(levels) > 1 and len(levels[-1].points) < 30:
         levels.pop()
     return Keyframe(index, np.array(world_from_key), plane, corners, tuple(levels), sigma, threshold)
@@ -114,7 +149,6 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
 def footprint(camera: PinholeCamera, corners_cur: np.ndarray) -> float:
     """Share of the image covered by the model rectangle (4, 3) given in the current camera."""
     if np.any(corners_cur[:, 2] <= 1e-6):
-        # Part of the rectangle is behind the camera: clip by sampling the image instead.
         return 0.0
     poly = camera.project(corners_cur).astype(np.float32)
     img = np.array([[0, 0], [camera.width, 0], [camera.width, camera.height], [0, camera.height]],
@@ -123,11 +157,20 @@ def footprint(camera: PinholeCamera, corners_cur: np.ndarray) -> float:
     return float(area) / (camera.width * camera.height)
 
 
-def _output_covariance(cov_xi: np.ndarray, key_from_cur: np.ndarray) -> np.ndarray:
-    """Covariance of (t, rotvec) of ``key_from_cur`` from that of its left-perturbation twist."""
-    t = key_from_cur[:3, 3]
+def adjoint(T: np.ndarray) -> np.ndarray:
+    """6x6 adjoint of a 4x4 pose for twists ordered (v, w)."""
+    R, t = T[:3, :3], T[:3, 3]
+    A = np.zeros((6, 6))
+    A[:3, :3] = R
+    A[:3, 3:] = skew(t) @ R
+    A[3:, 3:] = R
+    return A
+
+
+def output_covariance(cov_xi: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """Covariance of (t, rotvec) of ``pose`` from that of its left-perturbation twist (6, 6)."""
     A = np.eye(6)
-    A[:3, 3:] = -np.array([[0, -t[2], t[1]], [t[2], 0, -t[0]], [-t[1], t[0], 0]])
+    A[:3, 3:] = -skew(pose[:3, 3])
     return A @ cov_xi @ A.T
 
 
@@ -142,11 +185,17 @@ class Odometry:
         self.options = options or TrackOptions()
         self.mask = mask
         self._plane0 = plane
+        self._prior = PlanePrior(plane, np.radians(self.options.plane_prior_deg),
+                                 self.options.distance_pull)
         self._key: Keyframe | None = first_keyframe
         self._world_from_prev = np.eye(4)
         self._cur_from_key_prev = np.eye(4)
+        self._cov_prev = np.zeros((6, 6))      # of key_from_prev's left twist
         self._velocity: np.ndarray | None = None  # cur_from_prev of the last good frame
-        self._levels = self.options.levels or num_levels(camera.width, camera.height)
+        self._gain, self._bias = 1.0, 0.0
+        self._recent_msd: deque[float] = deque(maxlen=15)
+        self._pending_reanchor = False
+        self._prev_image: np.ndarray | None = None
 
     @property
     def keyframe(self) -> Keyframe | None:
@@ -157,102 +206,185 @@ class Odometry:
         if self._key is None:
             self._key = build_keyframe(index, image, self.camera, self._plane0, self.region,
                                        np.eye(4), self.options, mask=self.mask)
+        self._prev_image = image
         n = len(self._key.levels[0].points)
         return FrameResult(index, timestamp, np.eye(4), np.eye(4), 0.0, 0, n, "ok",
-                           np.zeros(6), np.zeros((6, 6)))
+                           np.zeros(6), np.zeros((6, 6)), keyframe=self._key.index)
 
-    def step(self, index: int, timestamp: float, image: np.ndarray) -> FrameResult:
-        """Estimate frame ``index`` and return its result (status ok, reanchored or lost)."""
+    # -- one frame --------------------------------------------------------------------
+    def step(self, index: int, timestamp: float, image: np.ndarray,
+             prior_motion: np.ndarray | None = None) -> FrameResult:
+        """Estimate frame ``index``: status ``ok``, ``reanchored`` or ``lost``.
+
+        ``prior_motion`` (4x4, T_{k-1}_k, e.g. from wheel odometry) replaces the constant
+        velocity as the initial guess.
+        """
         key = self._key
         assert key is not None, "call start() first"
+        if self._prev_image is not None and image.shape == self._prev_image.shape and \
+                np.array_equal(image, self._prev_image):
+            return self._lost(index, timestamp, "duplicate of the previous frame")
+        self._prev_image = image
+        if not np.all(np.isfinite(image)) or float(image.std()) < 1e-3:
+            return self._lost(index, timestamp, "constant or invalid image")
         pyr = build_pyramid(image, len(key.levels))
-        if self._velocity is not None:
+        searched = False
+        if prior_motion is not None:
+            guess = se3_inv(prior_motion) @ self._cur_from_key_prev
+        elif self._velocity is not None:
             guess = self._velocity @ self._cur_from_key_prev
         else:
-            guess = coarse_search(key.levels[-1], pyr[-1], self._cur_from_key_prev,
-                                  options=self.options.estimator, noise_sigma=key.noise_sigma)
-        est = estimate_motion(key.levels, pyr, guess, options=self.options.estimator)
-        if not self._good(est, key, pyr) and self._velocity is not None:
-            retry_init = coarse_search(key.levels[-1], pyr[-1], guess,
-                                       options=self.options.estimator, noise_sigma=key.noise_sigma)
-            retry = estimate_motion(key.levels, pyr, retry_init, options=self.options.estimator)
-            if self._score(retry, key, pyr) > self._score(est, key, pyr):
+            guess = self._search(key, pyr, self._cur_from_key_prev)
+            searched = True
+        est = estimate_motion(key.levels, pyr, guess, options=self.options.estimator,
+                              gain=self._gain, bias=self._bias)
+        reason = self._failure(est, key)
+        if reason and not searched:
+            retry = estimate_motion(key.levels, pyr, self._search(key, pyr, guess),
+                                    options=self.options.estimator, gain=self._gain,
+                                    bias=self._bias)
+            if self._score(retry, key) > self._score(est, key):
                 est = retry
-        good = self._good(est, key, pyr)
-        world_from_prev = self._world_from_prev
-        if good:
-            cur_from_key = orthonormalize(est.cur_from_key)
-            status = "ok"
-        else:
-            cur_from_key = (self._velocity if self._velocity is not None else np.eye(4)) \
-                @ self._cur_from_key_prev
-            status = "lost"
-        cur_from_key = orthonormalize(cur_from_key)
+            reason = self._failure(est, key)
+        if not reason:
+            reason = self._step_too_large(orthonormalize(est.cur_from_key))
+        if reason:
+            return self._lost(index, timestamp, reason, est)
+        return self._accept(index, timestamp, image, pyr, est)
+
+    def skip(self, index: int, timestamp: float) -> FrameResult:
+        """Frame ``index`` has no usable image: record it as lost at the prediction."""
+        return self._lost(index, timestamp, "unreadable frame")
+
+    # -- outcomes ---------------------------------------------------------------------
+    def _accept(self, index: int, timestamp: float, image: np.ndarray, pyr: list[np.ndarray],
+                est: Estimate) -> FrameResult:
+        key = self._key
+        cur_from_key = orthonormalize(est.cur_from_key)
+        gain, bias = est.gain, est.bias
+        status = "ok"
+        reanchor = self._pending_reanchor or self._needs_reanchor(est, key, cur_from_key)
+        plane_key = key.plane
+        if reanchor and self.options.refine_plane and key.index != index:
+            cur_from_key, plane_key, gain, bias = refine_plane_and_motion(
+                key.levels[0].points, pyr[0], cur_from_key, key.plane, self._prior,
+                gain=gain, bias=bias, options=self.options.estimator)
+            cur_from_key = orthonormalize(cur_from_key)
         world_from_cur = orthonormalize(key.world_from_key @ se3_inv(cur_from_key))
-        prev_from_cur = orthonormalize(se3_inv(world_from_prev) @ world_from_cur)
-        cov = _output_covariance(est.covariance, se3_inv(cur_from_key)) if good \
-            else np.full((6, 6), np.nan)
-        std = np.sqrt(np.clip(np.diag(cov), 0.0, None)) if good else np.full(6, np.nan)
-        msd = est.msd if np.isfinite(est.msd) else 0.0
-        self._velocity = se3_inv(prev_from_cur) if good else self._velocity
+        prev_from_cur = orthonormalize(se3_inv(self._world_from_prev) @ world_from_cur)
+        cov = self._relative_covariance(est.covariance, prev_from_cur)
+        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        self._velocity = se3_inv(prev_from_cur)
         self._world_from_prev = world_from_cur
         self._cur_from_key_prev = cur_from_key
-        if not good or self._needs_reanchor(est, key, cur_from_key):
-            self._reanchor(index, image, pyr, world_from_cur, cur_from_key)
-            if good:
-                status = "reanchored"
-        return FrameResult(index, timestamp, world_from_cur, prev_from_cur, msd, est.iterations,
-                           est.points, status, std, cov)
+        self._cov_prev = est.covariance
+        self._gain, self._bias = gain, bias
+        self._recent_msd.append(est.msd)
+        if reanchor and self._reanchor(index, image, pyr, world_from_cur, cur_from_key, plane_key):
+            status = "reanchored"
+        return FrameResult(index, timestamp, world_from_cur, prev_from_cur, est.msd,
+                           est.iterations, est.points, status, std, cov, self._key.index,
+                           est.gain, est.bias)
 
-    def _score(self, est: Estimate, key: Keyframe, pyr: list[np.ndarray]) -> float:
+    def _lost(self, index: int, timestamp: float, reason: str,
+              est: Estimate | None = None) -> FrameResult:
+        velocity = self._velocity if self._velocity is not None else np.eye(4)
+        cur_from_key = orthonormalize(velocity @ self._cur_from_key_prev)
+        world_from_cur = orthonormalize(self._key.world_from_key @ se3_inv(cur_from_key))
+        prev_from_cur = orthonormalize(se3_inv(self._world_from_prev) @ world_from_cur)
+        self._world_from_prev = world_from_cur
+        self._cur_from_key_prev = cur_from_key
+        self._pending_reanchor = True
+        msd = est.msd if est is not None and np.isfinite(est.msd) else 0.0
+        its = est.iterations if est is not None else 0
+        pts = est.points if est is not None else 0
+        return FrameResult(index, timestamp, world_from_cur, prev_from_cur, msd, its, pts, "lost",
+                           np.full(6, np.nan), np.full((6, 6), np.nan), self._key.index,
+                           self._gain, self._bias, reason)
+
+    # -- checks -----------------------------------------------------------------------
+    def _search(self, key: Keyframe, pyr: list[np.ndarray], guess: np.ndarray) -> np.ndarray:
+        return coarse_search(key.levels[-1], pyr[-1], guess, options=self.options.estimator,
+                             noise_sigma=key.noise_sigma, gain=self._gain, bias=self._bias)
+
+    @staticmethod
+    def _score(est: Estimate, key: Keyframe) -> float:
         """Share of the in-view points that agree with the estimate within the noise."""
         if est.residuals is None:
             return 0.0
         return inlier_fraction(est.residuals, est.valid, key.noise_sigma) / max(est.valid_fraction, 1e-9)
 
-    def _good(self, est: Estimate, key: Keyframe, pyr: list[np.ndarray]) -> bool:
+    def _failure(self, est: Estimate, key: Keyframe) -> str:
+        """Why ``est`` cannot be trusted, or '' (the divergence checks)."""
         if not est.converged or not np.all(np.isfinite(est.cur_from_key)):
-            return False
-        if not np.all(np.isfinite(est.covariance)):
-            return False
-        return self._score(est, key, pyr) >= self.options.min_inliers
+            return "too few observation points in view"
+        if not np.all(np.isfinite(est.covariance)) or est.condition > self.options.max_condition:
+            return "ill-conditioned normal equations"
+        if self._score(est, key) < self.options.min_inliers:
+            return "intensity differences do not fit the motion"
+        if len(self._recent_msd) >= 3 and \
+                est.msd > self.options.msd_factor * float(np.median(self._recent_msd)):
+            return "mean squared difference rose sharply"
+        if est.finest_iterations >= self.options.estimator.max_iterations:
+            return "no convergence within the iteration cap"
+        return ""
+
+    def _step_too_large(self, cur_from_key: np.ndarray) -> str:
+        o = self.options
+        if o.max_step_m is None and o.max_step_deg is None:
+            return ""
+        world_from_cur = self._key.world_from_key @ se3_inv(cur_from_key)
+        step = se3_inv(self._world_from_prev) @ world_from_cur
+        if o.max_step_m is not None and np.linalg.norm(step[:3, 3]) > o.max_step_m:
+            return f"step beyond --max-step {o.max_step_m} m"
+        if o.max_step_deg is not None and \
+                np.degrees(np.linalg.norm(so3_log(step[:3, :3]))) > o.max_step_deg:
+            return f"step beyond --max-step {o.max_step_deg} deg"
+        return ""
 
     def _needs_reanchor(self, est: Estimate, key: Keyframe, cur_from_key: np.ndarray) -> bool:
         corners_cur = key.corners @ cur_from_key[:3, :3].T + cur_from_key[:3, 3]
         return (est.valid_fraction < self.options.reanchor_fraction
                 or footprint(self.camera, corners_cur) < self.options.min_footprint)
 
-    def _reanchor(self, index: int, image: np.ndarray, pyr: list[np.ndarray],
-                  world_from_cur: np.ndarray, cur_from_key: np.ndarray) -> None:
-        key = self._key
-        plane = key.plane.in_frame(cur_from_key)
-        try:
-            self._key = build_keyframe(index, image, self.camera, plane, self.region,
-                                       world_from_cur, self.options, mask=self.mask, pyramid=pyr)
-        except TrackingError:
-            return  # keep the old model (e.g. a blank frame); try again next frame
-        self._cur_from_key_prev = np.eye(4)
+    def _relative_covariance(self, cov_cur: np.ndarray, prev_from_cur: np.ndarray) -> np.ndarray:
+        """Covariance of T_{k-1}_k's (t, rotvec) from the keyframe-relative ones.
 
-    def skip(self, index: int, timestamp: float) -> FrameResult:
-        """Frame ``index`` has no usable image: record it as lost at the constant-velocity
-        prediction (the last good frame's motion repeated) and carry on from there."""
-        key = self._key
-        assert key is not None, "call start() first"
-        velocity = self._velocity if self._velocity is not None else np.eye(4)
-        cur_from_key = orthonormalize(velocity @ self._cur_from_key_prev)
-        world_from_cur = orthonormalize(key.world_from_key @ se3_inv(cur_from_key))
-        prev_from_cur = orthonormalize(se3_inv(self._world_from_prev) @ world_from_cur)
-        self._world_from_prev = world_from_cur
-        self._cur_from_key_prev = cur_from_key
-        return FrameResult(index, timestamp, world_from_cur, prev_from_cur, 0.0, 0, 0, "lost",
-                           np.full(6, np.nan), np.full((6, 6), np.nan))
+        With both frames tracked against the keyframe, prev_from_cur = key_from_prev^-1
+        key_from_cur, whose left twist is Ad(prev_from_key) (xi_cur - xi_prev); the two
+        estimates' errors are taken as independent.
+        """
+        A = adjoint(self._cur_from_key_prev)  # Ad(prev_from_key)
+        return output_covariance(A @ (cov_cur + self._cov_prev) @ A.T, prev_from_cur)
+
+    def _reanchor(self, index: int, image: np.ndarray, pyr: list[np.ndarray],
+                  world_from_cur: np.ndarray, cur_from_key: np.ndarray, plane_key: Plane) -> bool:
+        """Anchor a new ground model on this frame; False if the frame cannot carry one."""
+        plane = plane_key.in_frame(cur_from_key)
+        d = plane.distance + self._prior.distance_pull * (self._prior.plane.distance - plane.distance)
+        try:
+            self._key = build_keyframe(index, image, self.camera, Plane(plane.normal, d),
+                                       self.region, world_from_cur, self.options, mask=self.mask,
+                                       pyramid=pyr)
+        except TrackingError:
+            return False
+        self._cur_from_key_prev = np.eye(4)
+        self._cov_prev = np.zeros((6, 6))
+        self._gain, self._bias = 1.0, 0.0
+        self._recent_msd.clear()
+        self._pending_reanchor = False
+        return True
 
 
 def track(frames: Iterable[tuple[int, float, np.ndarray]], camera: PinholeCamera, plane: Plane,
           region: tuple[int, int, int, int], options: TrackOptions | None = None, *,
           mask: np.ndarray | None = None, first_keyframe: Keyframe | None = None,
+          priors: Mapping[int, np.ndarray] | None = None,
           on_keyframe: Callable[[Keyframe], None] | None = None) -> Iterator[FrameResult]:
-    """Yield a :class:`FrameResult` per ``(index, timestamp, image)``, frame 0 first."""
+    """Yield a :class:`FrameResult` per ``(index, timestamp, image)``, frame 0 first.
+
+    ``priors`` maps a frame index to its prior motion T_{k-1}_k (4x4).
+    """
     odo = Odometry(camera, plane, region, options, mask=mask, first_keyframe=first_keyframe)
     it = iter(frames)
     try:
@@ -263,4 +395,4 @@ def track(frames: Iterable[tuple[int, float, np.ndarray]], camera: PinholeCamera
     if on_keyframe is not None:
         on_keyframe(odo.keyframe)
     for index, ts, image in it:
-        yield odo.step(index, ts, image)
+        yield odo.step(index, ts, image, None if priors is None else priors.get(index))

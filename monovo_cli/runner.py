@@ -8,10 +8,13 @@ hold exactly the frames done.
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import signal
 import sys
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -21,7 +24,7 @@ from monovo_cli.config import InitConfig, check_frame_size, load_init
 from monovo_cli.errors import InputError, OutputError
 from monovo_cli.frames import FrameSequence, find_init_yaml, resolve_sequence
 from monovo_cli.ground import Plane
-from monovo_cli.odometry import FrameResult, Keyframe, TrackOptions, build_keyframe, track
+from monovo_cli.odometry import FrameResult, Keyframe, Odometry, TrackOptions, build_keyframe
 from monovo_cli.outputs import (
     MotionRow,
     MotionWriter,
@@ -102,13 +105,46 @@ def _plane(cfg: InitConfig) -> Plane:
     return Plane(np.asarray(cfg.ground.normal_array(), dtype=float), float(cfg.ground.distance))
 
 
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """Hold SIGINT and SIGTERM while a frame is committed to disk and deliver them after,
+    so an interruption never separates a motion.csv row from its trajectory entry.
+
+    Only the main thread can set handlers; elsewhere this does nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[int] = []
+    saved = {}
+    try:
+        for signum in (signal.SIGINT, signal.SIGTERM):
+            saved[signum] = signal.signal(signum, lambda s, _f: caught.append(s))
+        yield
+    finally:
+        for signum, handler in saved.items():
+            signal.signal(signum, handler if handler is not None else signal.SIG_DFL)
+        for signum in dict.fromkeys(caught):
+            signal.raise_signal(signum)
+
+
+def _remove_stale_temporaries(out_dir: Path) -> None:
+    """Temporary files a killed run (kill -9) left behind next to the results."""
+    for name in RESULT_FILES:
+        for tmp in Path(out_dir).glob(f".{name}.*.tmp"):
+            tmp.unlink(missing_ok=True)
+
+
 def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options: TrackOptions, *,
                    model: Path | None = None, overwrite: bool = False,
-                   checkpoint_every: int = 100,
+                   skip_bad_frames: bool = False, checkpoint_every: int = 100,
                    progress: Callable[[int, int], None] | None = None) -> TrackSummary:
     """``monovo track``: estimate every frame's motion and write the SPEC outputs.
 
     ``out_dir`` None streams motion.csv rows to stdout and writes no files.
+    A frame after the first that cannot be read stops the run with an InputError (the rows
+    done are kept); with ``skip_bad_frames`` it is recorded as ``lost`` at the
+    constant-velocity prediction and tracking goes on.
     ``progress(done, total)`` is called after every frame.
     """
     frames, cfg = open_sequence(seq, params)
@@ -124,6 +160,7 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
         prepare_out_dir(out_dir, overwrite)
         for name in RESULT_FILES:  # stale results of an earlier run must not survive
             (Path(out_dir) / name).unlink(missing_ok=True)
+        _remove_stale_temporaries(Path(out_dir))
         stream = open(Path(out_dir) / "motion.csv", "w", newline="")
     else:
         stream = sys.stdout
@@ -140,27 +177,43 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     t0 = time.perf_counter()
     try:
         writer = MotionWriter(stream, with_std=True)
-        gen = ((f.index, f.timestamp, f.image) for f in frames)
+        odo = Odometry(cfg.camera, _plane(cfg), cfg.ground.region, options,
+                       first_keyframe=first_key)
         prev = None
         dist = 0.0
-        for res in track(gen, cfg.camera, _plane(cfg), cfg.ground.region, options,
-                         first_keyframe=first_key):
-            results.append((res.index, res.timestamp, res.world_from_cam))
-            if res.index > 0:
-                writer.write(_row(res))
-                msds.append(res.msd)
-                lost += res.status == "lost"
-                reanchored += res.status == "reanchored"
-                dist += float(np.linalg.norm(res.world_from_cam[:3, 3] - prev[:3, 3]))
-            prev = res.world_from_cam
-            if checkpoint_every and len(results) % checkpoint_every == 0:
-                flush_trajectory()
+        for index in range(len(frames)):
+            try:
+                frame = frames.read(index)
+            except InputError as exc:
+                if index == 0 or not skip_bad_frames:
+                    kept = (f"the rows of frames 1..{index - 1} went to stdout" if out_dir is None
+                            else f"frames 0..{index - 1} are kept in {out_dir}")
+                    raise InputError(f"{exc}; tracking stopped at frame {index} ({kept}); replace "
+                                     "the file, or use --skip-bad-frames to record bad frames as "
+                                     "lost and go on") from None
+                log.warning("%s; recorded as lost (--skip-bad-frames)", exc)
+                res = odo.skip(index, float(frames.timestamps[index]))
+            else:
+                step = odo.start if index == 0 else odo.step
+                res = step(frame.index, frame.timestamp, frame.image)
+            with _signals_held():
+                results.append((res.index, res.timestamp, res.world_from_cam))
+                if res.index > 0:
+                    writer.write(_row(res))
+                    msds.append(res.msd)
+                    lost += res.status == "lost"
+                    reanchored += res.status == "reanchored"
+                    dist += float(np.linalg.norm(res.world_from_cam[:3, 3] - prev[:3, 3]))
+                prev = res.world_from_cam
+                if checkpoint_every and len(results) % checkpoint_every == 0:
+                    flush_trajectory()
             if progress is not None:
                 progress(len(results), len(frames))
     finally:
-        flush_trajectory()
-        if out_dir is not None:
-            stream.close()
+        with _signals_held():
+            flush_trajectory()
+            if out_dir is not None:
+                stream.close()
     seconds = time.perf_counter() - t0
     return TrackSummary(len(results), float(np.mean(msds)) if msds else 0.0, seconds, lost,
                         reanchored, dist, Path(out_dir) if out_dir is not None else None)

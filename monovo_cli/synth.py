@@ -611,7 +611,8 @@ def _check_number(name: str, value, *, low: float, high: float = math.inf,
 def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = None,
                size: tuple[int, int] | None = None, noise_var: float = 10.0, seed: int = 0,
                texture: Path | None = None, max_translation: float | None = None,
-               max_rotation_deg: float = 5.0, exposure: bool = False,
+               max_rotation_deg: float = 5.0, exposure: bool = False, shadow: float = 0.0,
+               low_texture: bool = False,
                progress: Callable[[int, int], None] | None = None) -> SynthSummary:
     """Write a synthetic sequence (``drive``) or set of 2-frame sequences (``pairs``).
 
@@ -623,6 +624,9 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
     drive's turns are fixed (yaw rate up to 1 deg/frame) and ignore it.
     ``exposure``: vary gain (0.8..1.2) and bias (+-15 grey levels) per frame (smoothly along
     a drive, independently per pair frame); written to ``photometric.csv``.
+    ``shadow``: darken (x0.5) this fraction of the image's bottom rows in every frame, a
+    shadow fixed to the camera like the rover's own. ``low_texture``: a smooth ground with
+    a quarter of the contrast and no fine detail.
     ``progress(done, total)`` is called after each drive frame / each pair.
     Raises InputError for bad arguments, OutputError if ``out_dir`` exists and is not empty
     or cannot be written.
@@ -652,6 +656,7 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
     _check_number("max_translation", max_translation, low=0.0,
                   high=1.0 if drive else 0.5 * PAIR_DISTANCE)
     _check_number("max_rotation_deg", max_rotation_deg, low=0.0, high=30.0)
+    _check_number("--shadow", shadow, low=0.0, high=1.0)
     if out_dir.exists():
         if not out_dir.is_dir():
             raise OutputError(f"{out_dir}: exists and is not a directory")
@@ -677,6 +682,12 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
     else:
         tex_image = procedural_texture(procedural_texture_size(width, height), seed)
         texture_desc = None
+    if low_texture:
+        n_pad = 16
+        smooth = cv2.GaussianBlur(np.pad(tex_image, n_pad, mode="wrap"), (0, 0), 4.0)
+        smooth = smooth[n_pad:-n_pad, n_pad:-n_pad]
+        tex_image = ((smooth - smooth.mean()) * (0.25 * TEXTURE_STD / max(float(smooth.std()), 1e-6))
+                     + TEXTURE_MEAN).astype(np.float32)
     tex = GroundTexture(tex_image, metres_per_texel)
     period = np.array(tex.shape[::-1], dtype=float) * metres_per_texel  # (u, v) metres
 
@@ -685,7 +696,7 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
         "preset": preset, "seed": seed, "frames": frames, "size": [width, height],
         "noise_var": float(noise_var), "max_translation": float(max_translation),
         "max_rotation_deg": float(max_rotation_deg), "exposure": bool(exposure),
-        "texture": texture_desc, "texture_texels": [int(tex.shape[1]), int(tex.shape[0])],
+        "texture": texture_desc, "shadow": float(shadow), "low_texture": bool(low_texture), "texture_texels": [int(tex.shape[1]), int(tex.shape[0])],
         "metres_per_texel": metres_per_texel, "supersample": SUPERSAMPLE,
     }
     # All geometry first (it can still reject the arguments), then write.
@@ -733,7 +744,10 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
         _make_dir(frames_dir)
         for k, g in enumerate(poses):
             gain, bias = photometric[k] if photometric else (1.0, 0.0)
-            img = finish_frame(renderer.render(g), noise_rng, float(noise_var), gain, bias)
+            ground = renderer.render(g)
+            if shadow > 0:
+                ground[int(round(height * (1.0 - shadow))):] *= np.float32(0.5)
+            img = finish_frame(ground, noise_rng, float(noise_var), gain, bias)
             _write_png(frames_dir / f"frame_{k:06d}.png", img)
             if drive and progress is not None:
                 progress(k + 1, frames)

@@ -1,0 +1,121 @@
+"""Re-estimating the ground plane at a keyframe from the images, with the mounting prior.
+
+Carrying the plane from keyframe to keyframe with the accumulated estimate alone lets an
+error in the normal bias the next motions, which tilt the normal further. At each re-anchor
+we therefore refine, jointly, the motion ``cur_from_key`` and the keyframe plane's normal n
+from the two images (the keyframe's observation points sampled in the current frame, a
+forward Gauss-Newton whose point positions X_i(n) = d r_i / (n . r_i) move with the plane),
+regularised by the camera's mounting pose from init.yaml: the rover stands on the ground,
+so in every camera frame the plane is close to the initial one (n0, d0).
+
+The distance d is not refined here: with d and the translation scaled together the images
+do not change (the monocular scale gauge). Instead the next keyframe's distance is pulled
+gently back toward the mounting height (``distance_pull``), which bounds scale drift.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from monovo_cli.estimate import EstimatorOptions, robust_weights, sample_bilinear
+from monovo_cli.geometry import se3_exp
+from monovo_cli.ground import LevelPoints, Plane, sobel_gradient
+
+
+@dataclass(frozen=True)
+class PlanePrior:
+    """The mounting plane (n0, d0) in the camera frame and the prior's std of the normal (rad)."""
+
+    plane: Plane
+    normal_sigma: float = np.radians(2.0)
+    distance_pull: float = 0.1
+
+
+def _tangent_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(n, a)
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(n, e1)
+
+
+def refine_plane_and_motion(points: LevelPoints, image: np.ndarray, cur_from_key: np.ndarray,
+                            plane: Plane, prior: PlanePrior, *, gain: float = 1.0,
+                            bias: float = 0.0, options: EstimatorOptions | None = None,
+                            iterations: int = 8) -> tuple[np.ndarray, Plane, float, float]:
+    """Jointly refine ``cur_from_key`` (4x4) and the keyframe ``plane``'s normal.
+
+    ``points`` are the keyframe's observation points at the level of ``image`` (the current
+    frame, float32). Returns the refined ``(cur_from_key, plane, gain, bias)``; if the data
+    do not support a refinement (too few points in view, a singular system) the inputs come
+    back unchanged.
+    """
+    opts = options or EstimatorOptions()
+    cam = points.camera
+    gx_img, gy_img = sobel_gradient(image)
+    rays = points.X / points.X[:, 2:3]
+    I_key = points.intensity.astype(np.float64)
+    T = np.array(cur_from_key, dtype=np.float64)
+    n = np.array(plane.normal, dtype=np.float64)
+    d = float(plane.distance)
+    n0 = prior.plane.normal
+    inv_s2 = 1.0 / prior.normal_sigma ** 2
+    for _ in range(iterations):
+        denom = rays @ n
+        if np.any(denom <= 1e-9):
+            break
+        X = rays * (d / denom)[:, None]
+        R, t = T[:3, :3], T[:3, 3]
+        Xc = X @ R.T + t
+        z = Xc[:, 2]
+        front = z > 1e-9
+        iz = np.where(front, 1.0 / np.where(front, z, 1.0), 0.0)
+        u = cam.fx * Xc[:, 0] * iz + cam.cx
+        v = cam.fy * Xc[:, 1] * iz + cam.cy
+        vals, valid = sample_bilinear(image, u, v)
+        gx, _ = sample_bilinear(gx_img, u, v)
+        gy, _ = sample_bilinear(gy_img, u, v)
+        valid &= front
+        if np.count_nonzero(valid) < max(opts.min_valid_points, 50):
+            break
+        r = vals.astype(np.float64) - (gain * I_key + bias)
+        # a = grad^T d(u,v)/dXc (N, 3)
+        a1 = gx * cam.fx * iz
+        a2 = gy * cam.fy * iz
+        a3 = -(a1 * Xc[:, 0] + a2 * Xc[:, 1]) * iz
+        A = np.stack([a1, a2, a3], 1)
+        e1, e2 = _tangent_basis(n)
+        Jm = np.concatenate([A, np.cross(Xc, A)], axis=1)     # d r / d(left twist of T)
+        AR = A @ R                                            # d r / dX (keyframe coords)
+        s1 = -(X @ e1) / d
+        s2 = -(X @ e2) / d
+        Jn = np.stack([(AR * X).sum(1) * s1, (AR * X).sum(1) * s2], 1)
+        J = np.concatenate([Jm, Jn, -I_key[:, None], -np.ones((len(r), 1))], axis=1)
+        rv = r[valid]
+        wv, scale = robust_weights(rv.astype(np.float32), opts.robust, huber_k=opts.huber_k,
+                                   tukey_c=opts.tukey_c)
+        Jv = J[valid]
+        Jw = Jv * (wv[:, None] / scale ** 2)
+        H = Jw.T @ Jv
+        g = Jw.T @ rv
+        # prior on the normal, in the tangent coordinates of the current n
+        dn = n - n0
+        H[6, 6] += inv_s2
+        H[7, 7] += inv_s2
+        g[6] += inv_s2 * (dn @ e1)
+        g[7] += inv_s2 * (dn @ e2)
+        try:
+            step = -np.linalg.solve(H, g)
+        except np.linalg.LinAlgError:
+            break
+        if not np.all(np.isfinite(step)):
+            break
+        T = se3_exp(step[:6]) @ T
+        n = n + step[6] * e1 + step[7] * e2
+        n /= np.linalg.norm(n)
+        gain += step[8]
+        bias += step[9]
+        if np.max(np.abs(step[:8])) < 1e-9:
+            break
+    return T, Plane(n, d), gain, bias
