@@ -25,8 +25,9 @@ class BadInput(click.ClickException):
     exit_code = 2
 
 
-class Terminated(Exception):
-    """SIGTERM arrived."""
+class Terminated(BaseException):
+    """SIGTERM arrived (a BaseException, like KeyboardInterrupt, so no ``except Exception``
+    in the library swallows it)."""
 
 
 def _on_sigterm(signum, frame):  # noqa: ARG001
@@ -51,12 +52,29 @@ class MonovoGroup(click.Group):
         except Terminated:
             click.echo("monovo: terminated; the frames done so far are on disk", err=True)
             sys.exit(143)
+        except BrokenPipeError:
+            # The reader of -o - went away (e.g. '| head'): stop quietly like any Unix
+            # filter killed by SIGPIPE; stdout is pointed at /dev/null so that Python's
+            # final flush does not complain.
+            _silence_stdout()
+            sys.exit(141)
         except Exception as exc:
             if ctx.meta.get("monovo.verbose"):
                 raise
             msg = f"internal error: {type(exc).__name__}: {exc} (run with -v for the traceback)"
             click.echo(f"Error: {msg}", err=True)
             sys.exit(1)
+
+
+def _silence_stdout() -> None:
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):  # no real stdout (e.g. CliRunner)
+        pass
 
 
 def _common(f):
@@ -216,11 +234,14 @@ def init(ctx, seq, params, out, levels, threshold, max_points, robust, reanchor_
 @click.option("--model", type=click.Path(path_type=Path), default=None,
               help="A model.npz from 'monovo init' to start from.")
 @click.option("--overwrite", is_flag=True, help="Replace results already in the output directory.")
+@click.option("--skip-bad-frames", is_flag=True,
+              help="Record unreadable frames after the first as lost and go on "
+                   "[default: stop with an error, keeping the rows done].")
 @_model_options
 @_common
 @click.pass_context
-def track(ctx, seq, params, out, model, overwrite, levels, threshold, max_points, robust,
-          reanchor_fraction, quiet, verbose):
+def track(ctx, seq, params, out, model, overwrite, skip_bad_frames, levels, threshold, max_points,
+          robust, reanchor_fraction, quiet, verbose):
     """Estimate the motion of every frame of SEQ; write motion.csv and the trajectory."""
     _setup(ctx, quiet, verbose)
     from monovo_cli.runner import track_sequence
@@ -230,7 +251,8 @@ def track(ctx, seq, params, out, model, overwrite, levels, threshold, max_points
     try:
         s = track_sequence(seq, params, None if to_stdout else Path(out),
                            _track_options(levels, threshold, max_points, robust, reanchor_fraction),
-                           model=model, overwrite=overwrite, progress=bar)
+                           model=model, overwrite=overwrite, skip_bad_frames=skip_bad_frames,
+                           progress=bar)
     finally:
         bar.close()
     if not quiet:
