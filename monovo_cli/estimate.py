@@ -60,21 +60,42 @@ class EstimatorOptions:
     min_valid_points: int = 20
 
 
-def observation_matrix(X: np.ndarray, grad: np.ndarray, fx: float, fy: float) -> np.ndarray:
+def observation_matrix(X: np.ndarray, grad: np.ndarray, fx: float, fy: float,
+                       distortion_jacobian: np.ndarray | None = None) -> np.ndarray:
     """The rows o_i (N, 6) of the observation matrix O at points ``X`` (N, 3) with gradients (N, 2).
 
     Derivative of the intensity at the projection of ``exp(xi^) X`` with respect to the twist
-    ``xi = (v, w)`` at 0, grey levels per metre / per radian.
+    ``xi = (v, w)`` at 0, grey levels per metre / per radian. ``distortion_jacobian`` (N, 2, 2)
+    is d(pixel)/d(normalised coordinates) of a distorted camera; without it the camera is a
+    pinhole, d(pixel)/d(normalised) = diag(fx, fy).
     """
     X = np.asarray(X, dtype=np.float64)
     x, y, z = X[:, 0], X[:, 1], X[:, 2]
-    gx = grad[:, 0].astype(np.float64) * fx
-    gy = grad[:, 1].astype(np.float64) * fy
+    g = grad.astype(np.float64)
+    if distortion_jacobian is None:
+        gx = g[:, 0] * fx
+        gy = g[:, 1] * fy
+    else:
+        D = distortion_jacobian
+        gx = g[:, 0] * D[:, 0, 0] + g[:, 1] * D[:, 1, 0]
+        gy = g[:, 0] * D[:, 0, 1] + g[:, 1] * D[:, 1, 1]
     iz = 1.0 / z
     a1 = gx * iz
     a2 = gy * iz
     a3 = -(a1 * x + a2 * y) * iz
     return np.stack([a1, a2, a3, a3 * y - a2 * z, a1 * z - a3 * x, a2 * x - a1 * y], axis=1)
+
+
+def distortion_jacobian(camera, X: np.ndarray, eps: float = 1e-6) -> np.ndarray:
+    """d(pixel)/d(normalised coordinates) (N, 2, 2) of ``camera`` at points ``X`` (N, 3)."""
+    xn, yn = X[:, 0] / X[:, 2], X[:, 1] / X[:, 2]
+    J = np.empty((len(X), 2, 2))
+    for j, (dx, dy) in enumerate(((eps, 0.0), (0.0, eps))):
+        up = camera.distort_normalized(xn + dx, yn + dy)
+        dn = camera.distort_normalized(xn - dx, yn - dy)
+        J[:, 0, j] = camera.fx * (up[0] - dn[0]) / (2 * eps)
+        J[:, 1, j] = camera.fy * (up[1] - dn[1]) / (2 * eps)
+    return J
 
 
 def sample_bilinear(image: np.ndarray, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -155,7 +176,8 @@ class KeyLevel:
     @classmethod
     def from_points(cls, points: LevelPoints) -> KeyLevel:
         cam = points.camera
-        O = observation_matrix(points.X, points.grad, cam.fx, cam.fy)
+        D = distortion_jacobian(cam, points.X) if cam.has_distortion and len(points) else None
+        O = observation_matrix(points.X, points.grad, cam.fx, cam.fy, D)
         J = np.empty((len(points), 8), np.float32)
         J[:, :6] = O
         J[:, 6] = points.intensity

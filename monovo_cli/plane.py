@@ -19,7 +19,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monovo_cli.estimate import EstimatorOptions, robust_weights, sample_bilinear
+from monovo_cli.estimate import (
+    EstimatorOptions,
+    distortion_jacobian,
+    robust_weights,
+    sample_bilinear,
+)
 from monovo_cli.geometry import se3_exp
 from monovo_cli.ground import LevelPoints, Plane, sobel_gradient
 
@@ -71,8 +76,12 @@ def refine_plane_and_motion(points: LevelPoints, image: np.ndarray, cur_from_key
         z = Xc[:, 2]
         front = z > 1e-9
         iz = np.where(front, 1.0 / np.where(front, z, 1.0), 0.0)
-        u = cam.fx * Xc[:, 0] * iz + cam.cx
-        v = cam.fy * Xc[:, 1] * iz + cam.cy
+        if cam.has_distortion:
+            uv = cam.project(np.where(front[:, None], Xc, np.array([0.0, 0.0, 1.0])))
+            u, v = uv[:, 0], uv[:, 1]
+        else:
+            u = cam.fx * Xc[:, 0] * iz + cam.cx
+            v = cam.fy * Xc[:, 1] * iz + cam.cy
         vals, valid = sample_bilinear(image, u, v)
         gx, _ = sample_bilinear(gx_img, u, v)
         gy, _ = sample_bilinear(gy_img, u, v)
@@ -81,8 +90,13 @@ def refine_plane_and_motion(points: LevelPoints, image: np.ndarray, cur_from_key
             break
         r = vals.astype(np.float64) - (gain * I_key + bias)
         # a = grad^T d(u,v)/dXc (N, 3)
-        a1 = gx * cam.fx * iz
-        a2 = gy * cam.fy * iz
+        if cam.has_distortion:
+            D = distortion_jacobian(cam, np.where(front[:, None], Xc, np.array([0.0, 0.0, 1.0])))
+            gx, gy = gx * D[:, 0, 0] + gy * D[:, 1, 0], gx * D[:, 0, 1] + gy * D[:, 1, 1]
+        else:
+            gx, gy = gx * cam.fx, gy * cam.fy
+        a1 = gx * iz
+        a2 = gy * iz
         a3 = -(a1 * Xc[:, 0] + a2 * Xc[:, 1]) * iz
         A = np.stack([a1, a2, a3], 1)
         e1, e2 = _tangent_basis(n)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from monovo_cli.estimate import observation_matrix, sample_bilinear
+from monovo_cli.estimate import distortion_jacobian, observation_matrix, sample_bilinear
 from monovo_cli.geometry import PinholeCamera, se3_exp
 
 
@@ -12,10 +12,11 @@ def _linear_image(h=40, w=50, a=3.0, b=-2.0, c=7.0):
     return (a * xs + b * ys + c).astype(np.float32)
 
 
-def test_observation_matrix_matches_finite_differences():
+@pytest.mark.parametrize("distortion", [(0.0,) * 5, (-0.25, 0.08, 0.001, -0.002, 0.01)])
+def test_observation_matrix_matches_finite_differences(distortion):
     """o_i = d I(pi(exp(xi) X_i)) / d xi at xi = 0, for a linear intensity I(u, v) = g . (u, v)."""
     rng = np.random.default_rng(1)
-    cam = PinholeCamera(640, 480, 600.0, 610.0, 319.5, 239.5)
+    cam = PinholeCamera(640, 480, 600.0, 610.0, 319.5, 239.5, distortion)
     X = np.column_stack([rng.uniform(-2, 2, 50), rng.uniform(-1, 2, 50), rng.uniform(2, 9, 50)])
     grad = rng.normal(size=(50, 2)).astype(np.float32) * 20
 
@@ -24,7 +25,8 @@ def test_observation_matrix_matches_finite_differences():
         uv = cam.project(X @ T[:3, :3].T + T[:3, 3])
         return (uv * grad.astype(np.float64)).sum(axis=1)
 
-    O = observation_matrix(X, grad, cam.fx, cam.fy)
+    D = distortion_jacobian(cam, X) if cam.has_distortion else None
+    O = observation_matrix(X, grad, cam.fx, cam.fy, D)
     eps = 1e-6
     for j in range(6):
         e = np.zeros(6)

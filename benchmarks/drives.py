@@ -1,0 +1,137 @@
+"""Long drives that never get lost: the Drives issue's acceptance, measured.
+
+    python -m benchmarks.drives                 # all cases, 1000 frames each (~20 min)
+    python -m benchmarks.drives --frames 300 --cases clean faults
+
+Cases, each a `monovo synth --preset drive` at 512x512, noise variance 10, tracked with
+default options end to end (`monovo track`'s library call):
+  clean      the plain drive;
+  exposure   gain drifting 0.8-1.2 and bias +-15 grey levels (`--exposure`);
+  shadow     a dark fixed region (x0.5) over the bottom 15 % of the image (`--shadow 0.15`);
+  lowtex     a smooth, low-contrast ground (`--low-texture`);
+  faults     the clean drive with 3 blank, 3 duplicated and 3 heavily blurred frames
+             injected; each must be flagged (lost) and tracking must resume within 2 frames.
+Also `--pairs N` (default 100): the honesty of the reported standard deviations, the
+spread (std) of error / reported std per parameter over N `synth pairs`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+from benchmarks.common import final_drift, machine, motion_errors  # noqa: E402
+from monovo_cli.config import load_init  # noqa: E402
+from monovo_cli.frames import FrameSequence  # noqa: E402
+from monovo_cli.ground import Plane  # noqa: E402
+from monovo_cli.odometry import TrackOptions, track  # noqa: E402
+from monovo_cli.outputs import read_motion_csv, read_tum  # noqa: E402
+from monovo_cli.runner import track_sequence  # noqa: E402
+from monovo_cli.synth import synthesize  # noqa: E402
+
+SYNTH = {"clean": {}, "exposure": {"exposure": True}, "shadow": {"shadow": 0.15},
+         "lowtex": {"low_texture": True}}
+
+
+def inject_faults(frames_dir: Path, n_frames: int, seed: int = 0) -> dict[int, str]:
+    """Overwrite 9 frames: 3 blank, 3 duplicates of their predecessor, 3 heavily blurred."""
+    rng = np.random.default_rng(seed)
+    picks = rng.choice(np.arange(20, n_frames - 5, 10), size=9, replace=False)
+    kinds = ["blank"] * 3 + ["duplicate"] * 3 + ["blur"] * 3
+    paths = sorted(frames_dir.glob("*.png"))
+    out = {}
+    for k, kind in zip(sorted(picks), kinds):
+        if kind == "blank":
+            img = np.zeros_like(cv2.imread(str(paths[k]), cv2.IMREAD_GRAYSCALE))
+        elif kind == "duplicate":
+            img = cv2.imread(str(paths[k - 1]), cv2.IMREAD_GRAYSCALE)
+        else:
+            img = cv2.GaussianBlur(cv2.imread(str(paths[k]), cv2.IMREAD_GRAYSCALE), (0, 0), 6.0)
+        cv2.imwrite(str(paths[k]), img)
+        out[int(k)] = kind
+    return out
+
+
+def run_case(root: Path, name: str, frames: int, seed: int) -> dict:
+    seq = root / name
+    synthesize(seq, preset="drive", frames=frames, noise_var=10.0, seed=seed,
+               **SYNTH.get(name, {}))
+    faults = inject_faults(seq / "frames", frames) if name == "faults" else {}
+    s = track_sequence(seq, None, root / f"{name}_out", TrackOptions())
+    _, est = read_tum(root / f"{name}_out" / "trajectory.tum")
+    _, gt = read_tum(seq / "groundtruth.tum")
+    err, dist, heading = final_drift(est, gt)
+    _, _, status = read_motion_csv(root / f"{name}_out" / "motion.csv")
+    status = ["ok"] + status
+    flagged = sum(status[k] == "lost" for k in faults)
+    # tracking has resumed at frame j when j's pose relative to frame 0 is within 1 cm again
+    resume = []
+    for k in faults:
+        j = k + 1
+        while j < len(status) and (status[j] == "lost" or
+                                   np.linalg.norm(est[j][:3, 3] - gt[j][:3, 3]) > 0.01 + 0.01 * dist):
+            j += 1
+        resume.append(j - k)
+    lost_outside = sum(1 for k, st in enumerate(status) if st == "lost" and k not in faults)
+    shutil.rmtree(seq)
+    return {"case": name, "frames": frames, "distance": dist, "error": err,
+            "pct": 100 * err / dist, "heading": heading, "lost": lost_outside,
+            "faults_flagged": f"{flagged}/{len(faults)}" if faults else "-",
+            "resume": max(resume) if resume else "-", "fps": s.fps,
+            "reanchored": status.count("reanchored")}
+
+
+def std_honesty(root: Path, n_pairs: int, seed: int) -> np.ndarray:
+    """Per parameter: std of (error / reported std) over ``n_pairs`` pairs."""
+    synthesize(root / "pairs", preset="pairs", frames=n_pairs, noise_var=10.0, seed=seed)
+    z = []
+    for pair in sorted((root / "pairs").glob("pair_*")):
+        cfg = load_init(pair / "init.yaml")
+        fr = FrameSequence(pair / "frames")
+        plane = Plane(np.asarray(cfg.ground.normal_array()), cfg.ground.distance)
+        res = list(track(((f.index, f.timestamp, f.image) for f in fr), cfg.camera, plane,
+                         cfg.ground.region, TrackOptions()))
+        _, gt, _ = read_motion_csv(pair / "groundtruth_motion.csv")
+        e = motion_errors(res[1].prev_from_cur, gt[0])
+        e[3:] = np.radians(e[3:])
+        z.append(e / res[1].std)
+    return np.array(z)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--frames", type=int, default=1000)
+    ap.add_argument("--cases", nargs="+", default=["clean", "exposure", "shadow", "lowtex", "faults"])
+    ap.add_argument("--pairs", type=int, default=100)
+    ap.add_argument("--seed", type=int, default=7)
+    args = ap.parse_args()
+    cv2.setNumThreads(1)
+    print(f"machine: {machine()}\n")
+    print("| case | frames | distance (m) | final error (m) | % of distance | heading error (deg) "
+          "| lost (outside faults) | faults flagged | resumed within (frames) | re-anchored | frames/s |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in args.cases:
+            r = run_case(Path(tmp), name, args.frames, args.seed)
+            print(f"| {r['case']} | {r['frames']} | {r['distance']:.2f} | {r['error']:.4f} | "
+                  f"{r['pct']:.3f} | {r['heading']:.3f} | {r['lost']} | {r['faults_flagged']} | "
+                  f"{r['resume']} | {r['reanchored']} | {r['fps']:.1f} |", flush=True)
+        if args.pairs:
+            z = std_honesty(Path(tmp), args.pairs, args.seed)
+            print(f"\nHonesty of the reported std over {args.pairs} pairs: std of error/std per "
+                  "parameter (1 = exact, acceptance 0.5-2)\n")
+            print("| tx | ty | tz | rx | ry | rz |\n| --- | --- | --- | --- | --- | --- |")
+            print("| " + " | ".join(f"{v:.2f}" for v in z.std(axis=0)) + " |")
+
+
+if __name__ == "__main__":
+    main()
