@@ -234,6 +234,8 @@ def init(ctx, seq, params, out, levels, threshold, max_points, robust, reanchor_
 @click.option("--model", type=click.Path(path_type=Path), default=None,
               help="A model.npz from 'monovo init' to start from.")
 @click.option("--overwrite", is_flag=True, help="Replace results already in the output directory.")
+@click.option("--groundtruth", type=click.Path(path_type=Path), default=None, metavar="GT.tum",
+              help="A TUM ground truth to draw beside the estimate in trajectory.png.")
 @click.option("--skip-bad-frames", is_flag=True,
               help="Record unreadable frames after the first as lost and go on "
                    "[default: stop with an error, keeping the rows done].")
@@ -241,8 +243,11 @@ def init(ctx, seq, params, out, levels, threshold, max_points, robust, reanchor_
 @_common
 @click.pass_context
 def track(ctx, seq, params, out, model, overwrite, skip_bad_frames, levels, threshold, max_points,
-          robust, reanchor_fraction, quiet, verbose):
-    """Estimate the motion of every frame of SEQ; write motion.csv and the trajectory."""
+          robust, reanchor_fraction, quiet, verbose, groundtruth):
+    """Estimate the motion of every frame of SEQ; write motion.csv and the trajectory.
+
+    With -o DIR also trajectory.png, the path seen from above on the ground plane.
+    """
     _setup(ctx, quiet, verbose)
     from monovo_cli.runner import track_sequence
 
@@ -251,6 +256,7 @@ def track(ctx, seq, params, out, model, overwrite, skip_bad_frames, levels, thre
     try:
         s = track_sequence(seq, params, None if to_stdout else Path(out),
                            _track_options(levels, threshold, max_points, robust, reanchor_fraction),
+                           groundtruth=groundtruth,
                            model=model, overwrite=overwrite, skip_bad_frames=skip_bad_frames,
                            progress=bar)
     finally:
@@ -260,3 +266,91 @@ def track(ctx, seq, params, out, model, overwrite, skip_bad_frames, levels, thre
                    f"mean msd {s.mean_msd:.2f}, {s.reanchored} re-anchored, {s.lost} lost, "
                    f"path length {s.distance_m:.3f} m"
                    + ("" if to_stdout else f"; outputs in {out}"), err=to_stdout)
+
+
+def _parse_triangle(ctx, param, value):  # noqa: ARG001
+    """--triangle x1,y1,x2,y2,x3,y3 -> a (3, 2) array of frame-0 pixels."""
+    if value is None:
+        return None
+    import numpy as np
+
+    try:
+        nums = [float(v) for v in value.replace(" ", "").split(",")]
+    except ValueError:
+        nums = []
+    if len(nums) != 6 or not all(np.isfinite(nums)):
+        raise click.BadParameter(f"expected 6 numbers x1,y1,x2,y2,x3,y3 (frame-0 pixels), "
+                                 f"got {value!r}")
+    return np.array(nums).reshape(3, 2)
+
+
+@main.command()
+@click.argument("seq", type=click.Path(path_type=Path))
+@click.option("-p", "--params", type=click.Path(path_type=Path), default=None,
+              help="init.yaml [default: the one beside the frames].")
+@click.option("-t", "--trajectory", type=click.Path(path_type=Path), required=True,
+              help="The trajectory.csv (or .tum) of SEQ from 'monovo track'; status and msd "
+                   "come from motion.csv beside it.")
+@click.option("-o", "--output", "out", required=True,
+              help="overlay.mp4 (H.264), overlay.gif, or a directory for PNG frames.")
+@click.option("--triangle", callback=_parse_triangle, default=None, metavar="X1,Y1,X2,Y2,X3,Y3",
+              help="Triangle vertices in frame-0 pixels, lifted onto the ground "
+                   "[default: equilateral, centred in the ground region].")
+@click.option("--points", is_flag=True,
+              help="Also draw the observation points, coloured by intensity residual "
+                   "(green: within the noise, red: 3 sqrt(2) sigma and more).")
+@click.option("--fps", type=click.FloatRange(min=0.1, max=240.0), default=10.0, show_default=True)
+@click.option("--overwrite", is_flag=True, help="Replace the output if it exists.")
+@_common
+@click.pass_context
+def overlay(ctx, seq, params, trajectory, out, triangle, points, fps, overwrite, quiet, verbose):
+    """Render the glued triangle: a triangle on the ground moved with the estimated poses.
+
+    \b
+    If the estimates are right it stays glued to the ground (the paper's Figs. 10.4-10.7):
+      monovo track demo -o out
+      monovo overlay demo -t out/trajectory.csv -o out/overlay.mp4
+    """
+    _setup(ctx, quiet, verbose)
+    from monovo_cli.runner import overlay_sequence
+
+    bar = _Progress(quiet, "frame")
+    try:
+        s = overlay_sequence(seq, params, trajectory, out, triangle_px=triangle, points=points,
+                             fps=fps, overwrite=overwrite, progress=bar)
+    finally:
+        bar.close()
+    if not quiet:
+        click.echo(f"wrote {s.frames} frames to {s.out} in {s.seconds:.1f} s")
+
+
+@main.command(name="eval")
+@click.argument("estimate", type=click.Path(path_type=Path))
+@click.argument("groundtruth", type=click.Path(path_type=Path))
+@click.option("--align", is_flag=True,
+              help="Also give the ATE after a rigid SE(3) alignment (Umeyama, no scale).")
+@click.option("--json", "as_json", is_flag=True, help="Print the measures as JSON.")
+@_common
+@click.pass_context
+def eval_(ctx, estimate, groundtruth, align, as_json, quiet, verbose):
+    """Error tables of the trajectory ESTIMATE against GROUNDTRUTH (both TUM files).
+
+    \b
+    Poses are matched by timestamp (both files must hold the same ones). Prints the
+    paper-style per-axis relative-motion errors (Tables 10.1/10.2), the absolute
+    trajectory error, the final drift and the rotation drift:
+      monovo eval out/trajectory.tum demo/groundtruth.tum --align
+    """
+    _setup(ctx, quiet, verbose)
+    from monovo_cli.evaluate import evaluate, format_report
+    from monovo_cli.outputs import read_tum
+
+    ts_e, est = read_tum(estimate)
+    ts_g, gt = read_tum(groundtruth)
+    ev = evaluate(ts_e, est, ts_g, gt, align=align, names=(str(estimate), str(groundtruth)))
+    if as_json:
+        import json
+
+        click.echo(json.dumps(ev.as_dict(), indent=2))
+    else:
+        click.echo(format_report(ev))

@@ -252,3 +252,60 @@ def load_model(path: Path):
     key = Keyframe(0, np.eye(4), plane, d["corners"], tuple(levels), float(d["noise_sigma"]),
                    float(d["threshold"]))
     return camera, tuple(int(v) for v in d["region"]), key
+
+
+def read_trajectory_csv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Read a trajectory.csv (SPEC columns first): frames (N,), timestamps (N,) s and
+    ``world_from_cam`` poses (N, 4, 4). Frames must be distinct whole numbers."""
+    path = Path(path)
+    try:
+        with open(path, newline="") as f:
+            rows = list(csv.reader(f))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: cannot read trajectory CSV ({exc})") from None
+    if not rows or [c.strip() for c in rows[0][:9]] != list(TRAJECTORY_COLUMNS):
+        raise InputError(f"{path}: expected a header starting with {','.join(TRAJECTORY_COLUMNS)}")
+    frames, ts, poses = [], [], []
+    for i, r in enumerate(rows[1:], start=2):
+        if not r:
+            continue
+        if len(r) < 9:
+            raise InputError(f"{path}: line {i}: expected at least 9 fields, got {len(r)}")
+        v = _floats(r[:9], path, i)
+        if v[0] != int(v[0]) or v[0] < 0:
+            raise InputError(f"{path}: line {i}: frame must be a whole number >= 0, got {r[0]!r}")
+        q = np.array(v[5:9])
+        if np.linalg.norm(q) < 1e-6:
+            raise InputError(f"{path}: line {i}: zero quaternion")
+        frames.append(int(v[0]))
+        ts.append(v[1])
+        poses.append(make_pose(matrix_from_quat(q), np.array(v[2:5])))
+    if not frames:
+        raise InputError(f"{path}: no poses in trajectory CSV")
+    if len(set(frames)) != len(frames):
+        dup = next(k for k in frames if frames.count(k) > 1)
+        raise InputError(f"{path}: frame {dup} is given more than once")
+    return np.array(frames, dtype=int), np.array(ts), np.array(poses)
+
+
+def read_motion_stats(path: Path) -> dict[int, tuple[str, float]]:
+    """``{frame: (status, msd)}`` from a motion.csv (SPEC columns first)."""
+    path = Path(path)
+    try:
+        with open(path, newline="") as f:
+            rows = list(csv.reader(f))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{path}: cannot read motion CSV ({exc})") from None
+    if not rows or [c.strip() for c in rows[0][:11]] != list(MOTION_COLUMNS):
+        raise InputError(f"{path}: expected a header starting with {','.join(MOTION_COLUMNS)}")
+    out: dict[int, tuple[str, float]] = {}
+    for i, r in enumerate(rows[1:], start=2):
+        if not r:
+            continue
+        if len(r) < 11:
+            raise InputError(f"{path}: line {i}: expected at least 11 fields, got {len(r)}")
+        frame, msd = _floats([r[0], r[7]], path, i)
+        if frame != int(frame):
+            raise InputError(f"{path}: line {i}: frame must be a whole number, got {r[0]!r}")
+        out[int(frame)] = (r[10].strip(), msd)
+    return out

@@ -37,7 +37,7 @@ from monovo_cli.outputs import (
 
 log = logging.getLogger(__name__)
 
-RESULT_FILES = ("motion.csv", "trajectory.csv", "trajectory.tum")
+RESULT_FILES = ("motion.csv", "trajectory.csv", "trajectory.tum", "trajectory.png")
 
 
 @dataclass(frozen=True)
@@ -138,8 +138,12 @@ def _remove_stale_temporaries(out_dir: Path) -> None:
 def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options: TrackOptions, *,
                    model: Path | None = None, overwrite: bool = False,
                    skip_bad_frames: bool = False, checkpoint_every: int = 100,
+                   groundtruth: Path | None = None,
                    progress: Callable[[int, int], None] | None = None) -> TrackSummary:
     """``monovo track``: estimate every frame's motion and write the SPEC outputs.
+
+    With an output directory, ``trajectory.png`` (the path from above, see
+    :mod:`monovo_cli.plots`) is written at the end; ``groundtruth`` (a TUM file) is drawn in it.
 
     ``out_dir`` None streams motion.csv rows to stdout and writes no files.
     A frame after the first that cannot be read stops the run with an InputError (the rows
@@ -148,6 +152,11 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     ``progress(done, total)`` is called after every frame.
     """
     frames, cfg = open_sequence(seq, params)
+    gt_poses = None
+    if groundtruth is not None:
+        from monovo_cli.outputs import read_tum
+
+        gt_poses = read_tum(Path(groundtruth))[1]
     if len(frames) < 2:
         raise InputError(f"{frames.dir}: only {len(frames)} frame; tracking needs at least 2")
     first_key = None
@@ -215,6 +224,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
             if out_dir is not None:
                 stream.close()
     seconds = time.perf_counter() - t0
+    if out_dir is not None:
+        _write_trajectory_plot(Path(out_dir), _plane(cfg), results, gt_poses)
     return TrackSummary(len(results), float(np.mean(msds)) if msds else 0.0, seconds, lost,
                         reanchored, dist, Path(out_dir) if out_dir is not None else None)
 
@@ -222,3 +233,103 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
 def _row(res: FrameResult) -> MotionRow:
     return MotionRow(frame=res.index, prev_from_cur=res.prev_from_cur, msd=res.msd,
                      iterations=res.iterations, points=res.points, status=res.status, std=res.std)
+
+
+def _write_trajectory_plot(out_dir: Path, plane: Plane, results: list,
+                           groundtruth: np.ndarray | None) -> None:
+    """``trajectory.png`` in ``out_dir`` (atomically), statuses read back from motion.csv.
+
+    The ground truth is drawn from its first pose, which is put at camera 0.
+    """
+    from monovo_cli.geometry import se3_inv
+    from monovo_cli.outputs import read_motion_stats
+    from monovo_cli.plots import plot_trajectory
+    from monovo_cli.video import write_png_atomic
+
+    if not results:
+        return
+    idx, _, poses = zip(*results)
+    stats = read_motion_stats(out_dir / "motion.csv")
+    statuses = [stats.get(k, ("ok", 0.0))[0] for k in idx]
+    gt = None
+    if groundtruth is not None:
+        gt = se3_inv(groundtruth[0]) @ groundtruth
+    dist = float(np.sum(np.linalg.norm(np.diff(np.array(poses)[:, :3, 3], axis=0), axis=1)))
+    title = f"{out_dir.name}: {len(poses)} frames, path {dist:.2f} m"
+    write_png_atomic(out_dir / "trajectory.png",
+                     plot_trajectory(np.array(poses), plane, statuses=statuses, groundtruth=gt,
+                                     title=title))
+
+
+@dataclass(frozen=True)
+class OverlaySummary:
+    frames: int
+    out: Path
+    kind: str
+    seconds: float
+
+
+def _trajectory_by_frame(path: Path, frames: FrameSequence) -> dict[int, np.ndarray]:
+    """``{frame: world_from_cam}`` from a trajectory.csv, or a TUM file matched to the frames'
+    timestamps (within 1e-6 s)."""
+    from monovo_cli.outputs import read_trajectory_csv, read_tum
+
+    if path.suffix.lower() == ".tum" or path.suffix.lower() == ".txt":
+        ts, poses = read_tum(path)
+        pos = np.searchsorted(frames.timestamps, ts)
+        out = {}
+        for t, p, T in zip(ts, pos, poses):
+            hit = [j for j in (p - 1, p) if 0 <= j < len(frames)
+                   and abs(frames.timestamps[j] - t) <= 1e-6]
+            if not hit:
+                raise InputError(f"{path}: timestamp {t!r} matches no frame of {frames.dir} "
+                                 "(frame k has timestamp k, or its line in times.txt)")
+            out[hit[0]] = T
+        return out
+    idx, _, poses = read_trajectory_csv(path)
+    if idx.max() >= len(frames):
+        raise InputError(f"{path}: has frame {int(idx.max())} but {frames.dir} holds only "
+                         f"{len(frames)} frames; is it the trajectory of this sequence?")
+    return {int(k): T for k, T in zip(idx, poses)}
+
+
+def overlay_sequence(seq: Path, params: Path | None, trajectory: Path, out: str | Path, *,
+                     triangle_px: np.ndarray | None = None, points: bool = False,
+                     fps: float = 10.0, overwrite: bool = False,
+                     progress: Callable[[int, int], None] | None = None) -> OverlaySummary:
+    """``monovo overlay``: render the glued triangle into every frame of ``seq``.
+
+    ``trajectory`` is a trajectory.csv (or .tum) of the sequence; status and msd come from
+    motion.csv beside it when it is there. ``triangle_px`` (3, 2) frame-0 pixels (None: the
+    default triangle). Frames 0 .. the last posed frame are written to ``out`` (.mp4, .gif or
+    a directory of PNGs, :mod:`monovo_cli.video`); frames without a pose show no triangle.
+    """
+    from monovo_cli.outputs import read_motion_stats
+    from monovo_cli.overlay import OverlayRenderer, triangle_on_ground
+    from monovo_cli.video import open_sink
+
+    t0 = time.perf_counter()
+    frames, cfg = open_sequence(seq, params)
+    trajectory = Path(trajectory)
+    poses = _trajectory_by_frame(trajectory, frames)
+    motion = trajectory.parent / "motion.csv"
+    stats = read_motion_stats(motion) if motion.is_file() else {}
+    plane = _plane(cfg)
+    region = cfg.ground.region_or_full(cfg.camera.width, cfg.camera.height)
+    tri = triangle_on_ground(cfg.camera, plane, triangle_px, region)
+    renderer = OverlayRenderer(cfg.camera, plane, tri, region=region, points=points)
+    last = max(poses)
+    sink = open_sink(out, fps=fps, overwrite=overwrite)
+    try:
+        for k in range(last + 1):
+            frame = frames.read(k)
+            status, msd = stats.get(k, ("start" if k == 0 else None, None))
+            sink.write(renderer.render(k, frame.image, poses.get(k), status=status, msd=msd,
+                                       last=last))
+            if progress is not None:
+                progress(k + 1, last + 1)
+        sink.close()
+    except BaseException:
+        sink.abort()
+        raise
+    return OverlaySummary(sink.frames, sink.path, sink.kind, time.perf_counter() - t0)

@@ -1,0 +1,242 @@
+"""Error tables of an estimated trajectory against ground truth (``monovo eval``).
+
+Both trajectories are ``world_from_cam`` poses (N, 4, 4) with timestamps (N,) s; poses are
+matched by timestamp (equal within ``TIME_TOLERANCE``), and both sets of timestamps must be
+the same. The measures:
+
+* **relative motion errors, per axis** -- for every pair of consecutive matched frames the
+  relative motion ``T_{k-1}_k = inv(T_0_{k-1}) T_0_k`` of both trajectories is compared
+  parameter by parameter: translation components (m) and rotation-vector components (deg),
+  ``|t_est - t_gt|`` and ``|r_est - r_gt|``, the way the paper's Tables 10.1 and 10.2 give
+  the mean and standard deviation of the absolute estimation error per axis. The rotation
+  error per axis is the difference of the two rotation vectors (not the rotation vector of
+  the difference rotation; both agree to first order for small motions).
+* **ATE** -- the RMSE of the position differences ``|p_est - p_gt|`` (m), without alignment
+  and, on request, after the rigid (SE(3), no scale) least-squares alignment of the estimated
+  positions onto the true ones (Umeyama 1991, eqs. 34-42 with c = 1), as ``evo_ape`` computes
+  it (``evo_ape tum GT EST [--align]``).
+* **final drift** -- the end-point error of the estimated trajectory relative to its first
+  pose against the same for the truth, ``|t(inv(E_0) E_n) - t(inv(G_0) G_n)|``, in m and as
+  % of the true path length; **rotation drift** -- the angle of the final relative-rotation
+  error (deg) per metre of true path.
+
+Pure: arrays in, numbers out.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from monovo_cli.errors import InputError
+from monovo_cli.geometry import se3_inv, so3_log
+
+TIME_TOLERANCE = 1e-6  # s
+AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """The error measures of one trajectory (module docstring).
+
+    ``relative_mean`` / ``relative_std`` (6,): mean and standard deviation of the absolute
+    per-axis relative-motion errors, (tx, ty, tz) m and (rx, ry, rz) deg; ``ate_rmse`` m
+    without alignment; ``ate_rmse_aligned`` m after SE(3) alignment (None unless asked for)
+    with ``alignment`` its 4x4 ``gt_from_est``; ``final_drift_m``, ``final_drift_pct`` of
+    ``distance_m`` (the true path length, m), ``final_rotation_deg``,
+    ``rotation_drift_deg_per_m``.
+    """
+
+    poses: int
+    relative_mean: np.ndarray
+    relative_std: np.ndarray
+    ate_rmse: float
+    ate_max: float
+    ate_rmse_aligned: float | None
+    alignment: np.ndarray | None
+    distance_m: float
+    final_drift_m: float
+    final_drift_pct: float
+    final_rotation_deg: float
+    rotation_drift_deg_per_m: float
+
+    def as_dict(self) -> dict:
+        """Plain numbers for JSON: per-axis means/stds keyed by axis name, units in the keys."""
+        def num(x: float | None) -> float | None:
+            return None if x is None or not math.isfinite(x) else float(x)
+
+        rel = {}
+        for i, a in enumerate(AXES):
+            unit = "m" if i < 3 else "deg"
+            rel[a] = {f"mean_{unit}": float(self.relative_mean[i]),
+                      f"std_{unit}": float(self.relative_std[i])}
+        return {
+            "poses": self.poses,
+            "relative_motions": max(self.poses - 1, 0),
+            "relative_errors": rel,
+            "translation_average": {"mean_m": float(self.relative_mean[:3].mean()),
+                                    "std_m": float(self.relative_std[:3].mean())},
+            "rotation_average": {"mean_deg": float(self.relative_mean[3:].mean()),
+                                 "std_deg": float(self.relative_std[3:].mean())},
+            "ate_rmse_m": float(self.ate_rmse),
+            "ate_max_m": float(self.ate_max),
+            "ate_rmse_aligned_m": num(self.ate_rmse_aligned),
+            "distance_m": float(self.distance_m),
+            "final_drift_m": float(self.final_drift_m),
+            "final_drift_pct": num(self.final_drift_pct),
+            "final_rotation_error_deg": float(self.final_rotation_deg),
+            "rotation_drift_deg_per_m": num(self.rotation_drift_deg_per_m),
+        }
+
+
+def match_timestamps(ts_est: np.ndarray, ts_gt: np.ndarray, *, tolerance: float = TIME_TOLERANCE,
+                     names: tuple[str, str] = ("estimate", "ground truth")
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """Index arrays ``(i_est, i_gt)`` pairing equal timestamps (within ``tolerance`` s), in time
+    order. InputError if either holds a timestamp twice or one that the other lacks."""
+    ts_est, ts_gt = np.asarray(ts_est, dtype=float), np.asarray(ts_gt, dtype=float)
+    for ts, name in ((ts_est, names[0]), (ts_gt, names[1])):
+        if len(ts) == 0:
+            raise InputError(f"{name}: no poses")
+    for ts, name in ((ts_est, names[0]), (ts_gt, names[1])):
+        s = np.sort(ts)
+        dup = np.nonzero(np.diff(s) <= tolerance)[0]
+        if len(dup):
+            raise InputError(f"{name}: timestamp {float(s[dup[0]])!r} is given more than once")
+    oe, og = np.argsort(ts_est, kind="stable"), np.argsort(ts_gt, kind="stable")
+    se, sg = ts_est[oe], ts_gt[og]
+    j = np.clip(np.searchsorted(sg, se), 1, max(len(sg) - 1, 1))
+    cand = np.stack([j - 1, np.minimum(j, len(sg) - 1)], 1)
+    near = cand[np.arange(len(se)), np.argmin(np.abs(sg[cand] - se[:, None]), axis=1)]
+    ok = np.abs(sg[near] - se) <= tolerance
+    missing_in_gt = se[~ok]
+    matched = np.zeros(len(sg), bool)
+    matched[near[ok]] = True
+    missing_in_est = sg[~matched]
+    if len(missing_in_gt) or len(missing_in_est):
+        parts = []
+        if len(missing_in_gt):
+            parts.append(f"{len(missing_in_gt)} {names[0]} timestamp(s) have no {names[1]} pose "
+                         f"(first {float(missing_in_gt[0])!r})")
+        if len(missing_in_est):
+            parts.append(f"{len(missing_in_est)} {names[1]} timestamp(s) have no {names[0]} pose "
+                         f"(first {float(missing_in_est[0])!r})")
+        raise InputError("; ".join(parts) + f"; expected the same timestamps (within "
+                         f"{tolerance:g} s) in both")
+    return oe, og[near]
+
+
+def relative_motion_errors(est_world_from_cam: np.ndarray,
+                           gt_world_from_cam: np.ndarray) -> np.ndarray:
+    """Signed per-axis errors (N-1, 6) of consecutive relative motions: translation (m) and
+    rotation-vector components (deg), ``est - gt``."""
+    est, gt = np.asarray(est_world_from_cam), np.asarray(gt_world_from_cam)
+    out = np.zeros((max(len(est) - 1, 0), 6))
+    for k in range(1, len(est)):
+        e = se3_inv(est[k - 1]) @ est[k]
+        g = se3_inv(gt[k - 1]) @ gt[k]
+        out[k - 1, :3] = e[:3, 3] - g[:3, 3]
+        out[k - 1, 3:] = np.degrees(so3_log(e[:3, :3]) - so3_log(g[:3, :3]))
+    return out
+
+
+def umeyama_se3(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """The rigid transform ``dst_from_src`` (4, 4) minimising ``sum |dst_i - (R src_i + t)|^2``
+    for points ``src``, ``dst`` (N, 3) (Umeyama 1991 without scale)."""
+    src, dst = np.asarray(src, dtype=float), np.asarray(dst, dtype=float)
+    mu_s, mu_d = src.mean(axis=0), dst.mean(axis=0)
+    cov = (dst - mu_d).T @ (src - mu_s) / len(src)          # eq. 38
+    U, _, Vt = np.linalg.svd(cov)
+    S = np.eye(3)
+    if np.linalg.det(U) * np.linalg.det(Vt) < 0:           # eq. 39: no reflection
+        S[2, 2] = -1.0
+    R = U @ S @ Vt                                          # eq. 40
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = mu_d - R @ mu_s                              # eq. 41 with c = 1
+    return T
+
+
+def ate(est_world_from_cam: np.ndarray, gt_world_from_cam: np.ndarray, *,
+        align: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Position errors (N,) m and the alignment ``gt_from_est`` (4, 4) (identity unless
+    ``align``) of matched poses (N, 4, 4)."""
+    pe = np.asarray(est_world_from_cam)[:, :3, 3]
+    pg = np.asarray(gt_world_from_cam)[:, :3, 3]
+    T = umeyama_se3(pe, pg) if align else np.eye(4)
+    pa = pe @ T[:3, :3].T + T[:3, 3]
+    return np.linalg.norm(pa - pg, axis=1), T
+
+
+def evaluate(ts_est: np.ndarray, est_world_from_cam: np.ndarray, ts_gt: np.ndarray,
+             gt_world_from_cam: np.ndarray, *, align: bool = False,
+             names: tuple[str, str] = ("estimate", "ground truth")) -> Evaluation:
+    """All error measures of the estimate against the ground truth (module docstring).
+
+    ``ts_*`` (N,) s and ``*_world_from_cam`` (N, 4, 4); ``names`` name the two in errors.
+    InputError when the timestamps differ or fewer than 2 poses match.
+    """
+    est, gt = np.asarray(est_world_from_cam, dtype=float), np.asarray(gt_world_from_cam, dtype=float)
+    for a, t, name in ((est, ts_est, names[0]), (gt, ts_gt, names[1])):
+        if a.ndim != 3 or a.shape[1:] != (4, 4) or len(a) != len(t):
+            raise InputError(f"{name}: expected (N, 4, 4) poses with N timestamps, got {a.shape} "
+                             f"and {len(t)}")
+    ie, ig = match_timestamps(ts_est, ts_gt, names=names)
+    if len(ie) < 2:
+        raise InputError(f"{names[0]}: only {len(ie)} pose(s); evaluation needs at least 2")
+    est, gt = est[ie], gt[ig]
+    rel = np.abs(relative_motion_errors(est, gt))
+    err, _ = ate(est, gt)
+    err_al, T_al = ate(est, gt, align=True) if align else (None, None)
+    e_end = se3_inv(est[0]) @ est[-1]
+    g_end = se3_inv(gt[0]) @ gt[-1]
+    drift = float(np.linalg.norm(e_end[:3, 3] - g_end[:3, 3]))
+    rot = float(np.degrees(np.linalg.norm(so3_log(g_end[:3, :3].T @ e_end[:3, :3]))))
+    dist = float(np.linalg.norm(np.diff(gt[:, :3, 3], axis=0), axis=1).sum())
+    return Evaluation(
+        poses=len(ie),
+        relative_mean=rel.mean(axis=0),
+        relative_std=rel.std(axis=0),
+        ate_rmse=float(np.sqrt(np.mean(err ** 2))),
+        ate_max=float(err.max()),
+        ate_rmse_aligned=None if err_al is None else float(np.sqrt(np.mean(err_al ** 2))),
+        alignment=T_al,
+        distance_m=dist,
+        final_drift_m=drift,
+        final_drift_pct=100.0 * drift / dist if dist > 0 else float("nan"),
+        final_rotation_deg=rot,
+        rotation_drift_deg_per_m=rot / dist if dist > 0 else float("nan"),
+    )
+
+
+def format_report(ev: Evaluation) -> str:
+    """The paper-style tables (Tables 10.1 / 10.2) and the trajectory measures as text."""
+    def g(x: float) -> str:
+        return f"{x:.5f}" if abs(x) >= 1e-5 or x == 0 else f"{x:.3e}"
+
+    lines = [f"{ev.poses} poses, {max(ev.poses - 1, 0)} relative motions, "
+             f"true path length {ev.distance_m:.3f} m", "",
+             "Absolute relative-motion error, translation (Table 10.1)",
+             f"  {'axis':<10}{'mean (m)':>14}{'std (m)':>14}"]
+    for i, a in enumerate(("|E_Tx|", "|E_Ty|", "|E_Tz|")):
+        lines.append(f"  {a:<10}{g(ev.relative_mean[i]):>14}{g(ev.relative_std[i]):>14}")
+    lines.append(f"  {'average':<10}{g(ev.relative_mean[:3].mean()):>14}"
+                 f"{g(ev.relative_std[:3].mean()):>14}")
+    lines += ["", "Absolute relative-motion error, rotation (Table 10.2)",
+              f"  {'axis':<10}{'mean (deg)':>14}{'std (deg)':>14}"]
+    for i, a in enumerate(("|E_wx|", "|E_wy|", "|E_wz|")):
+        lines.append(f"  {a:<10}{g(ev.relative_mean[3 + i]):>14}{g(ev.relative_std[3 + i]):>14}")
+    lines.append(f"  {'average':<10}{g(ev.relative_mean[3:].mean()):>14}"
+                 f"{g(ev.relative_std[3:].mean()):>14}")
+    lines += ["", "Trajectory",
+              f"  ATE RMSE, no alignment      {ev.ate_rmse:.6f} m (max {ev.ate_max:.6f} m)"]
+    if ev.ate_rmse_aligned is not None:
+        lines.append(f"  ATE RMSE, SE(3) aligned     {ev.ate_rmse_aligned:.6f} m")
+    pct = f"{ev.final_drift_pct:.3f} %" if math.isfinite(ev.final_drift_pct) else "n/a"
+    rate = (f"{ev.rotation_drift_deg_per_m:.4f} deg/m"
+            if math.isfinite(ev.rotation_drift_deg_per_m) else "n/a")
+    lines += [f"  final drift                 {ev.final_drift_m:.6f} m = {pct} of the path",
+              f"  final rotation error        {ev.final_rotation_deg:.4f} deg = {rate}"]
+    return "\n".join(lines)

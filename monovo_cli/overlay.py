@@ -1,0 +1,374 @@
+"""The glued triangle: a virtual planar triangle attached to the ground (section 10.3).
+
+The paper judges its estimates on real sequences by a triangle "motion compensated with the
+negative of the accumulated rover's 3D motion estimates" and projected into every frame
+(Figs. 10.4-10.7): if the estimates are right it stays glued to the ground. Here the
+triangle's vertices ``X`` (3, 3) live on the ground plane in camera-0 coordinates (the
+world frame, SPEC); in frame k with pose ``world_from_cam = T_0_k`` they are
+``cam_from_world @ X`` with ``cam_from_world = inv(T_0_k)``.
+
+Drawing: the polygon is clipped in 3D against the camera's near plane and its view frustum
+(widened by ``FRUSTUM_MARGIN``) before it is projected, so a triangle partly behind the
+camera or far outside the image is drawn correctly; with lens distortion its edges are
+densified before projection, so they bend as the ground's straight lines do. Fill and
+outline are anti-aliased at 1/16 px (``cv2.LINE_AA``, ``shift=4``); pixel centres are
+integers, as in SPEC.
+
+Optional observation points (``points=True``) are the ground model's points of the frame
+the overlay anchors on (frame 0, then every re-anchored frame) projected with the pose and
+coloured by their intensity residual ``|I_k(pi(T X)) - I_key|``: green when it is within the
+noise, red at ``3 sqrt(2) sigma`` and above (the tracker's inlier bound).
+
+Pure: arrays in, arrays out; no files, no printing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from monovo_cli.errors import InputError
+from monovo_cli.estimate import sample_bilinear
+from monovo_cli.geometry import PinholeCamera, se3_inv
+from monovo_cli.ground import (
+    Plane,
+    default_threshold,
+    estimate_noise_sigma,
+    rectangle_corners,
+    select_points,
+)
+
+NEAR_FRACTION = 1e-3      # near clipping plane at this fraction of the ground distance
+FRUSTUM_MARGIN = 0.25     # clip to the view frustum widened by this share of the image per side
+DISTORTED_EDGE_STEPS = 32  # segments per triangle edge when the lens distorts
+SHIFT = 4                 # fractional bits of the drawing coordinates (1/16 px)
+
+
+@dataclass(frozen=True)
+class OverlayStyle:
+    """Colours (BGR), opacity and sizes of the overlay drawing."""
+
+    fill: tuple[int, int, int] = (0, 140, 255)      # orange
+    outline: tuple[int, int, int] = (0, 235, 255)   # yellow
+    alpha: float = 0.45                             # opacity of the fill
+    text: tuple[int, int, int] = (255, 255, 255)
+
+
+# ----------------------------------------------------------------------------- the triangle
+
+
+def default_triangle_pixels(region: tuple[int, int, int, int]) -> np.ndarray:
+    """An equilateral triangle (3, 2) px, apex up, centred in ``region`` (x0, y0, x1, y1; x1, y1
+    exclusive), its side a third of the region's smaller side."""
+    x0, y0, x1, y1 = region
+    cx, cy = 0.5 * (x0 + x1 - 1), 0.5 * (y0 + y1 - 1)
+    side = min(x1 - x0, y1 - y0) / 3.0
+    h = side * np.sqrt(3.0) / 2.0
+    return np.array([[cx, cy - 2.0 * h / 3.0],
+                     [cx + side / 2.0, cy + h / 3.0],
+                     [cx - side / 2.0, cy + h / 3.0]])
+
+
+def lift_pixels(camera: PinholeCamera, plane: Plane, uv: np.ndarray) -> np.ndarray:
+    """Points (N, 3) m on ``plane`` seen at pixels ``uv`` (N, 2) of ``camera`` (distortion
+    removed). InputError if a pixel's ray does not meet the plane (at or above the horizon)."""
+    uv = np.asarray(uv, dtype=float).reshape(-1, 2)
+    X = plane.intersect(camera.rays(uv))
+    bad = ~np.all(np.isfinite(X), axis=1)
+    if np.any(bad):
+        u, v = uv[int(np.argmax(bad))]
+        raise InputError(f"triangle vertex ({u:g}, {v:g}) px: its viewing ray does not meet the "
+                         "ground plane (at or above the horizon); pick pixels on the ground")
+    return X
+
+
+def triangle_on_ground(camera: PinholeCamera, plane: Plane,
+                       uv: np.ndarray | None = None,
+                       region: tuple[int, int, int, int] | None = None) -> np.ndarray:
+    """The triangle's vertices (3, 3) m on the ground in camera-0 coordinates.
+
+    ``uv`` (3, 2) are frame-0 pixels; None takes :func:`default_triangle_pixels` of ``region``
+    (default: the whole frame). InputError for a degenerate triangle.
+    """
+    if uv is None:
+        uv = default_triangle_pixels(region or (0, 0, camera.width, camera.height))
+    uv = np.asarray(uv, dtype=float)
+    if uv.shape != (3, 2) or not np.all(np.isfinite(uv)):
+        raise InputError(f"triangle: expected 3 finite (x, y) pixel pairs, got shape {uv.shape}")
+    d1, d2 = uv[1] - uv[0], uv[2] - uv[0]
+    if abs(d1[0] * d2[1] - d1[1] * d2[0]) < 1.0:
+        raise InputError("triangle: its 3 vertices are (nearly) on one line; give a real triangle")
+    return lift_pixels(camera, plane, uv)
+
+
+# ----------------------------------------------------------------------------- clipping
+
+
+def clip_polygon(poly: np.ndarray, halfspaces: np.ndarray) -> np.ndarray:
+    """Sutherland-Hodgman: the part (M, 3) of the convex or concave polygon ``poly`` (N, 3)
+    where ``a . X + b >= 0`` for every row ``(a1, a2, a3, b)`` of ``halfspaces`` (K, 4).
+    Returns an empty (0, 3) array when nothing is left."""
+    out = np.asarray(poly, dtype=float)
+    for h in np.asarray(halfspaces, dtype=float):
+        if len(out) == 0:
+            break
+        s = out @ h[:3] + h[3]
+        nxt = np.roll(out, -1, axis=0)
+        s_nxt = np.roll(s, -1)
+        kept = []
+        for p, q, sp, sq in zip(out, nxt, s, s_nxt):
+            if sp >= 0:
+                kept.append(p)
+            if (sp >= 0) != (sq >= 0):
+                kept.append(p + (sp / (sp - sq)) * (q - p))
+        out = np.array(kept).reshape(-1, 3)
+    return out
+
+
+def frustum_halfspaces(camera: PinholeCamera, near: float,
+                       margin: float = FRUSTUM_MARGIN) -> np.ndarray:
+    """Half-spaces (5, 4) of the near plane ``z >= near`` and of the view frustum through the
+    image border widened by ``margin`` of the image on each side, in normalised coordinates."""
+    w, h = camera.width, camera.height
+    n = 16
+    border = np.concatenate([
+        np.stack([np.linspace(-0.5, w - 0.5, n), np.full(n, -0.5)], 1),
+        np.stack([np.linspace(-0.5, w - 0.5, n), np.full(n, h - 0.5)], 1),
+        np.stack([np.full(n, -0.5), np.linspace(-0.5, h - 0.5, n)], 1),
+        np.stack([np.full(n, w - 0.5), np.linspace(-0.5, h - 0.5, n)], 1),
+    ])
+    r = camera.rays(border)
+    xmin, xmax = float(r[:, 0].min()), float(r[:, 0].max())
+    ymin, ymax = float(r[:, 1].min()), float(r[:, 1].max())
+    mx, my = margin * (xmax - xmin), margin * (ymax - ymin)
+    xmin, xmax, ymin, ymax = xmin - mx, xmax + mx, ymin - my, ymax + my
+    return np.array([
+        [0.0, 0.0, 1.0, -near],   # z >= near
+        [1.0, 0.0, -xmin, 0.0],   # x / z >= xmin
+        [-1.0, 0.0, xmax, 0.0],   # x / z <= xmax
+        [0.0, 1.0, -ymin, 0.0],   # y / z >= ymin
+        [0.0, -1.0, ymax, 0.0],   # y / z <= ymax
+    ])
+
+
+def project_polygon(camera: PinholeCamera, poly_cam: np.ndarray, near: float) -> np.ndarray:
+    """Image outline (M, 2) px of the polygon ``poly_cam`` (N, 3) m in camera coordinates,
+    clipped to the near plane and the (widened) view frustum; (0, 2) when none of it is in view."""
+    clipped = clip_polygon(poly_cam, frustum_halfspaces(camera, near))
+    if len(clipped) < 3:
+        return np.zeros((0, 2))
+    if camera.has_distortion:
+        t = np.linspace(0.0, 1.0, DISTORTED_EDGE_STEPS, endpoint=False)[:, None]
+        nxt = np.roll(clipped, -1, axis=0)
+        clipped = np.concatenate([p + t * (q - p) for p, q in zip(clipped, nxt)])
+    return camera.project(clipped)
+
+
+def project_vertices(camera: PinholeCamera, X_world: np.ndarray,
+                     world_from_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pixels (N, 2) of world points ``X_world`` (N, 3) seen from ``world_from_cam`` (4, 4), and
+    a mask (N,) of those in front of the camera and inside the image."""
+    cam_from_world = se3_inv(world_from_cam)
+    Xc = X_world @ cam_from_world[:3, :3].T + cam_from_world[:3, 3]
+    front = Xc[:, 2] > 1e-9
+    with np.errstate(divide="ignore", invalid="ignore"):
+        uv = camera.project(np.where(front[:, None], Xc, np.nan))
+    inside = front & (uv[:, 0] >= -0.5) & (uv[:, 0] <= camera.width - 0.5) \
+        & (uv[:, 1] >= -0.5) & (uv[:, 1] <= camera.height - 0.5)
+    return uv, inside
+
+
+def vertex_errors(camera: PinholeCamera, X_world: np.ndarray, est_world_from_cam: np.ndarray,
+                  gt_world_from_cam: np.ndarray) -> np.ndarray:
+    """Image distance (N, V) px between the vertices ``X_world`` (V, 3) projected with the
+    estimated and the true poses (N, 4, 4); NaN where the true vertex is not in view."""
+    out = np.full((len(est_world_from_cam), len(X_world)), np.nan)
+    for k, (est, gt) in enumerate(zip(est_world_from_cam, gt_world_from_cam)):
+        uv_gt, seen = project_vertices(camera, X_world, gt)
+        uv_est, _ = project_vertices(camera, X_world, est)
+        d = np.linalg.norm(uv_est - uv_gt, axis=1)
+        d = np.where(np.isfinite(d), d, np.inf)  # seen by the truth, behind the estimate
+        out[k, seen] = d[seen]
+    return out
+
+
+# ----------------------------------------------------------------------------- drawing
+
+
+def to_bgr(image: np.ndarray) -> np.ndarray:
+    """A grey float image (H, W) on 0..255 (or an 8-bit grey / BGR image) as BGR uint8 (H, W, 3)."""
+    img = np.asarray(image)
+    if img.dtype != np.uint8:
+        img = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    if img.ndim == 2:
+        return cv2.cvtColor(img, cv2.COLOR_GRAY2BGR)
+    if img.ndim == 3 and img.shape[2] == 3:
+        return img.copy()
+    raise ValueError(f"expected a (H, W) or (H, W, 3) image, got shape {img.shape}")
+
+
+def draw_polygon(img: np.ndarray, uv: np.ndarray, *, fill: tuple[int, int, int],
+                 outline: tuple[int, int, int], alpha: float, thickness: int) -> None:
+    """Draw the polygon ``uv`` (N, 2) px into ``img`` (H, W, 3) uint8 in place: filled with
+    opacity ``alpha`` and outlined, both anti-aliased at 1/16 px."""
+    if len(uv) < 3:
+        return
+    h, w = img.shape[:2]
+    scale = 1 << SHIFT
+    pts = np.round(np.asarray(uv) * scale).astype(np.int32)
+    pad = thickness + 2
+    x0 = max(int(np.floor(uv[:, 0].min())) - pad, 0)
+    y0 = max(int(np.floor(uv[:, 1].min())) - pad, 0)
+    x1 = min(int(np.ceil(uv[:, 0].max())) + pad + 1, w)
+    y1 = min(int(np.ceil(uv[:, 1].max())) + pad + 1, h)
+    if x0 >= x1 or y0 >= y1:
+        return
+    roi = img[y0:y1, x0:x1]
+    layer = roi.copy()
+    local = (pts - np.array([x0 * scale, y0 * scale], dtype=np.int32)).reshape(-1, 1, 2)
+    cv2.fillPoly(layer, [local], fill, cv2.LINE_AA, SHIFT)
+    cv2.addWeighted(layer, alpha, roi, 1.0 - alpha, 0.0, dst=roi)
+    cv2.polylines(img, [pts.reshape(-1, 1, 2)], True, outline, thickness, cv2.LINE_AA, SHIFT)
+
+
+def residual_colours(r: np.ndarray, bound: float) -> np.ndarray:
+    """BGR colours (N, 3) uint8 of residuals ``r`` (N,): green at 0, yellow at ``bound / 2``,
+    red at ``bound`` and above."""
+    s = np.clip(np.abs(r) / max(bound, 1e-9), 0.0, 1.0)
+    g = np.clip(2.0 * (1.0 - s), 0.0, 1.0) * 255
+    red = np.clip(2.0 * s, 0.0, 1.0) * 255
+    return np.stack([np.zeros_like(s), g, red], 1).astype(np.uint8)
+
+
+def draw_text(img: np.ndarray, text: str, colour: tuple[int, int, int]) -> None:
+    """One line of text in the top-left corner of ``img`` on a dark band, in place."""
+    h, w = img.shape[:2]
+    scale = max(0.35, min(w, h) / 700.0)
+    thick = 1 if scale < 0.8 else 2
+    font = cv2.FONT_HERSHEY_SIMPLEX
+    (tw, th), base = cv2.getTextSize(text, font, scale, thick)
+    pad = max(2, int(round(4 * scale)))
+    x1, y1 = min(w, tw + 2 * pad), min(h, th + base + 2 * pad)
+    band = img[0:y1, 0:x1]
+    cv2.addWeighted(band, 0.4, np.zeros_like(band), 0.6, 0.0, dst=band)
+    cv2.putText(img, text, (pad, pad + th), font, scale, colour, thick, cv2.LINE_AA)
+
+
+# ----------------------------------------------------------------------------- points
+
+
+@dataclass(frozen=True)
+class AnchorPoints:
+    """Observation points of the frame the overlay anchors on, in that frame's camera.
+
+    ``X`` (N, 3) m, ``intensity`` (N,) grey levels, ``bound`` the residual shown red (grey
+    levels), ``world_from_key`` (4, 4).
+    """
+
+    world_from_key: np.ndarray
+    X: np.ndarray
+    intensity: np.ndarray
+    bound: float
+
+
+def anchor_points(image: np.ndarray, camera: PinholeCamera, plane_key: Plane,
+                  region: tuple[int, int, int, int], world_from_key: np.ndarray, *,
+                  max_points: int = 1500) -> AnchorPoints:
+    """The full-resolution observation points of ``image`` (H, W) float32 as the tracker picks
+    them (Sobel above the default delta_1 inside the ground rectangle), at most ``max_points``."""
+    sigma = estimate_noise_sigma(image)
+    corners = rectangle_corners(camera, plane_key, region)
+    pts = select_points(image, camera, plane_key, corners, level=0,
+                        threshold=default_threshold(sigma), max_points=max_points)
+    bound = 3.0 * np.sqrt(2.0) * max(sigma, 1.0)
+    return AnchorPoints(np.array(world_from_key, dtype=float), pts.X,
+                        pts.intensity.astype(np.float64), bound)
+
+
+# ----------------------------------------------------------------------------- renderer
+
+
+class OverlayRenderer:
+    """Draws the glued triangle (and optionally the residual-coloured points) into frames.
+
+    ``plane`` is the ground in camera-0 coordinates, ``triangle`` (3, 3) m its vertices there,
+    ``region`` the ground rectangle (px) of init.yaml. Keeps only the anchor points between
+    frames (when ``points``): they are re-picked on frames whose status is ``reanchored`` and
+    when fewer than half of them stay in view.
+    """
+
+    def __init__(self, camera: PinholeCamera, plane: Plane, triangle: np.ndarray, *,
+                 region: tuple[int, int, int, int] | None = None, points: bool = False,
+                 max_points: int = 1500, style: OverlayStyle | None = None) -> None:
+        self.camera = camera
+        self.plane = plane
+        self.triangle = np.asarray(triangle, dtype=float)
+        self.region = region or (0, 0, camera.width, camera.height)
+        self.points = points
+        self.max_points = max_points
+        self.style = style or OverlayStyle()
+        self.near = NEAR_FRACTION * plane.distance
+        self._anchor: AnchorPoints | None = None
+        side = min(camera.width, camera.height)
+        self.thickness = max(1, int(round(side / 300.0)))
+        self.dot = max(1, int(round(side / 400.0)))
+
+    def triangle_outline(self, world_from_cam: np.ndarray) -> np.ndarray:
+        """The triangle's clipped image outline (M, 2) px in the frame with ``world_from_cam``."""
+        cam_from_world = se3_inv(world_from_cam)
+        X = self.triangle @ cam_from_world[:3, :3].T + cam_from_world[:3, 3]
+        return project_polygon(self.camera, X, self.near)
+
+    def render(self, index: int, image: np.ndarray, world_from_cam: np.ndarray | None, *,
+               status: str | None = None, msd: float | None = None,
+               last: int | None = None) -> np.ndarray:
+        """Frame ``index``: ``image`` (H, W) grey float32 0..255 with the overlay, BGR uint8.
+
+        ``world_from_cam`` None (no pose) draws no triangle. ``status``/``msd`` (from
+        motion.csv) and ``last`` (the last frame's index) go into the text line.
+        """
+        out = to_bgr(image)
+        if world_from_cam is not None:
+            if self.points:
+                self._draw_points(out, index, image, world_from_cam, status)
+            st = self.style
+            draw_polygon(out, self.triangle_outline(world_from_cam), fill=st.fill,
+                         outline=st.outline, alpha=st.alpha, thickness=self.thickness)
+        text = f"frame {index}" + (f"/{last}" if last is not None else "")
+        if world_from_cam is None:
+            text += "  no pose"
+        elif status:
+            text += f"  {status}"
+        if msd is not None and np.isfinite(msd):
+            text += f"  msd {msd:.1f}"
+        draw_text(out, text, self.style.text)
+        return out
+
+    def _draw_points(self, out: np.ndarray, index: int, image: np.ndarray,
+                     world_from_cam: np.ndarray, status: str | None) -> None:
+        if self._anchor is None:
+            self._reanchor(image, world_from_cam)
+        a = self._anchor
+        cur_from_key = se3_inv(world_from_cam) @ a.world_from_key
+        Xc = a.X @ cur_from_key[:3, :3].T + cur_from_key[:3, 3]
+        front = Xc[:, 2] > self.near
+        with np.errstate(divide="ignore", invalid="ignore"):
+            uv = self.camera.project(np.where(front[:, None], Xc, np.nan))
+        vals, valid = sample_bilinear(image, uv[:, 0], uv[:, 1])
+        valid &= front
+        r = vals.astype(np.float64) - a.intensity
+        colours = residual_colours(r[valid], a.bound)
+        scale = 1 << SHIFT
+        centres = np.round(uv[valid] * scale).astype(np.int64)
+        for (x, y), c in zip(centres, colours):
+            cv2.circle(out, (int(x), int(y)), self.dot * scale, tuple(int(v) for v in c), -1,
+                       cv2.LINE_AA, SHIFT)
+        if status == "reanchored" or valid.sum() <= 0.5 * len(valid):
+            self._reanchor(image, world_from_cam)
+
+    def _reanchor(self, image: np.ndarray, world_from_cam: np.ndarray) -> None:
+        plane_cur = self.plane.in_frame(se3_inv(world_from_cam))
+        self._anchor = anchor_points(image, self.camera, plane_cur, self.region, world_from_cam,
+                                     max_points=self.max_points)
