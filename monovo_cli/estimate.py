@@ -403,7 +403,9 @@ def estimate_motion(levels: Sequence[KeyLevel], pyramid: Sequence[np.ndarray],
         try:
             eig = np.linalg.eigvalsh(Hn)
             cond = float(eig[-1] / eig[0]) if eig[0] > 0 else float("inf")
+            H = 0.5 * (H + H.T)
             cov = sigma2 * np.linalg.inv(H)[:6, :6]
+            cov = 0.5 * (cov + cov.T)
         except np.linalg.LinAlgError:
             pass
     converged = bool(nv >= opts.min_valid_points and np.all(np.isfinite(T)))

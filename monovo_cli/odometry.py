@@ -355,7 +355,8 @@ class Odometry:
         estimates' errors are taken as independent.
         """
         A = adjoint(self._cur_from_key_prev)  # Ad(prev_from_key)
-        return output_covariance(A @ (cov_cur + self._cov_prev) @ A.T, prev_from_cur)
+        cov = output_covariance(A @ (cov_cur + self._cov_prev) @ A.T, prev_from_cur)
+        return 0.5 * (cov + cov.T)
 
     def _reanchor(self, index: int, image: np.ndarray, pyr: list[np.ndarray],
                   world_from_cur: np.ndarray, cur_from_key: np.ndarray, plane_key: Plane) -> bool:
