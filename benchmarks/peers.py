@@ -1,0 +1,366 @@
+"""The peers, in the same run, on the same frames: ORB + RANSAC homography and ECC alignment.
+
+    python -m benchmarks.peers                          # 100 pairs + a 300-frame 512x512 drive
+    python -m benchmarks.peers --pairs 20 --frames 100  # quicker
+    python -m benchmarks.peers --check                  # only the noise-free validation
+
+Two baselines a user with a known ground plane would pick instead of monovo, both built on
+OpenCV and given the same plane (init.yaml's normal n and distance d in the previous frame):
+
+* **ORB** -- ``cv2.ORB_create`` (3000 features, 3 pyramid levels), brute-force Hamming
+  matching with cross-check, ``cv2.findHomography`` with RANSAC (4 px, 2000 iterations,
+  then its least-squares refinement on the inliers);
+* **ECC** -- ``cv2.findTransformECC`` with ``MOTION_HOMOGRAPHY`` over a ``cv2.pyrDown``
+  pyramid (coarsest side >= 32 px), started from the identity at the coarsest level and
+  refined level by level (50 iterations or 1e-6 correlation change per level, 5x5 Gaussian
+  pre-filter).
+
+Both give a homography ``H`` mapping frame k-1 pixels to frame k pixels. For the plane
+``{X : n . X = d}`` in camera k-1 and ``X_k = R X_{k-1} + t``,
+``H ~ K (R + t n^T / d) K^-1``; ``cv2.decomposeHomographyMat`` returns up to four
+``(R, t/d, n)``, the one whose normal is closest to the known ``n`` is kept, ``t`` is scaled by
+the known ``d``, and the motion ``T_{k-1}_k`` is the inverse of ``[R | t]``. Along a drive
+each method carries the plane forward with its own motion estimates (as monovo carries its
+ground model). The settings above were picked on 20 separate pairs (seed 99, noise variance
+10) from ORB 3000/5000 features, 3/4/8 levels, 1-6 px RANSAC, cross-check vs ratio test, and
+ECC 4-6 levels, 50/100 iterations, 3/5/7 px pre-filter, as the most accurate of each.
+
+Measured: the pairs of ``benchmarks.paper_tables`` (688x544, noise variance 10, same seed,
+so the same frames; images in memory, all three methods given both frames) and a
+``monovo synth --preset drive`` sequence (512x512, noise variance 10) tracked frame to frame
+and chained: monovo end to end through ``runner.track_sequence``, the peers decoding the same
+PNGs in their timed loop. Per axis the mean absolute error of the motions ``T_{k-1}_k``
+(translation m, rotation-vector components deg), failures (no homography or no solution;
+a failed drive frame repeats the previous motion), time per frame on one core, and the ratios
+monovo / better peer and monovo frames/s / ECC frames/s. ``--check`` first validates the
+decomposition on exact homographies and runs both peers on noise-free pairs. ~6 min.
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from benchmarks.common import AXES, final_drift, machine, motion_errors, one_core
+from benchmarks.paper_tables import run_pairs
+from monovo_cli.config import load_init
+from monovo_cli.geometry import make_pose, se3_inv
+from monovo_cli.ground import Plane
+from monovo_cli.odometry import TrackOptions
+from monovo_cli.outputs import read_motion_csv, read_tum
+from monovo_cli.runner import track_sequence
+from monovo_cli.synth import synthesize
+
+ORB_FEATURES = 3000
+ORB_LEVELS = 3
+RANSAC_PX = 4.0
+RANSAC_ITERATIONS = 2000
+ECC_ITERATIONS = 50
+ECC_EPS = 1e-6
+ECC_GAUSS = 5
+ECC_MIN_SIDE = 32  # px, coarsest pyramid level
+CONVERGED = 0.05  # m and deg, as in paper_tables
+
+
+# --------------------------------------------------------------------------- homography -> motion
+
+
+def motion_from_homography(H: np.ndarray, K: np.ndarray, plane: Plane) -> np.ndarray | None:
+    """``prev_from_cur`` (4x4) from ``H`` (3x3, any scale) mapping previous-frame pixels to
+    current-frame pixels, for the known ``plane`` in the previous camera; None if OpenCV finds
+    no decomposition."""
+    try:
+        _, Rs, ts, ns = cv2.decomposeHomographyMat(np.asarray(H, dtype=np.float64), K)
+    except cv2.error:
+        return None
+    if not len(Rs):
+        return None
+    best = int(np.argmax([float(np.ravel(n) @ plane.normal) for n in ns]))
+    cur_from_prev = make_pose(Rs[best], np.ravel(ts[best]) * plane.distance)
+    return se3_inv(cur_from_prev)
+
+
+def homography_from_motion(prev_from_cur: np.ndarray, K: np.ndarray, plane: Plane) -> np.ndarray:
+    """The exact ``H = K (R + t n^T / d) K^-1`` with ``[R | t] = cur_from_prev``."""
+    c = se3_inv(prev_from_cur)
+    return K @ (c[:3, :3] + np.outer(c[:3, 3], plane.normal) / plane.distance) @ np.linalg.inv(K)
+
+
+# --------------------------------------------------------------------------- the peers
+
+
+class OrbPeer:
+    """ORB features, cross-checked Hamming matches, RANSAC homography."""
+
+    name = "ORB + RANSAC homography"
+
+    def __init__(self) -> None:
+        self.orb = cv2.ORB_create(nfeatures=ORB_FEATURES, nlevels=ORB_LEVELS)
+        self.matcher = cv2.BFMatcher(cv2.NORM_HAMMING, crossCheck=True)
+
+    def prepare(self, image: np.ndarray):
+        """Keypoint positions (N, 2) float32 and descriptors of a uint8 frame."""
+        kps, desc = self.orb.detectAndCompute(image, None)
+        return np.float32([k.pt for k in kps]).reshape(-1, 2), desc
+
+    def homography(self, prev, cur) -> np.ndarray | None:
+        (p0, d0), (p1, d1) = prev, cur
+        if d0 is None or d1 is None or len(p0) < 4 or len(p1) < 4:
+            return None
+        matches = self.matcher.match(d0, d1)
+        if len(matches) < 8:
+            return None
+        a = p0[[m.queryIdx for m in matches]]
+        b = p1[[m.trainIdx for m in matches]]
+        H, _ = cv2.findHomography(a, b, cv2.RANSAC, RANSAC_PX, maxIters=RANSAC_ITERATIONS,
+                                  confidence=0.999)
+        return H
+
+
+def ecc_levels(width: int, height: int) -> int:
+    n, w, h = 1, width, height
+    while min(w, h) // 2 >= ECC_MIN_SIDE:
+        w, h, n = w // 2, h // 2, n + 1
+    return n
+
+
+class EccPeer:
+    """Enhanced-correlation-coefficient homography, coarse to fine from the identity."""
+
+    name = "ECC homography (coarse to fine)"
+
+    def prepare(self, image: np.ndarray) -> list[np.ndarray]:
+        """float32 ``cv2.pyrDown`` pyramid of a frame, finest first."""
+        pyr = [image.astype(np.float32)]
+        for _ in range(ecc_levels(image.shape[1], image.shape[0]) - 1):
+            pyr.append(cv2.pyrDown(pyr[-1]))
+        return pyr
+
+    def homography(self, prev: list[np.ndarray], cur: list[np.ndarray]) -> np.ndarray | None:
+        criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, ECC_ITERATIONS, ECC_EPS)
+        H = np.eye(3)
+        for lv in range(len(prev) - 1, -1, -1):
+            # cv2.pyrDown keeps pixel 2j of a level as pixel j of the next: x_l = x_0 / 2^l.
+            S = np.diag([0.5 ** lv, 0.5 ** lv, 1.0])
+            W = S @ H @ np.linalg.inv(S)
+            W = (W / W[2, 2]).astype(np.float32)
+            try:
+                _, W = cv2.findTransformECC(prev[lv], cur[lv], W, cv2.MOTION_HOMOGRAPHY, criteria,
+                                            None, ECC_GAUSS)
+            except cv2.error:  # did not converge at this level: keep the coarser estimate
+                if lv == 0:
+                    return None
+                continue
+            H = np.linalg.inv(S) @ W.astype(np.float64) @ S
+        return H
+
+
+# --------------------------------------------------------------------------- runs
+
+
+@dataclass
+class MethodResult:
+    name: str
+    errors: np.ndarray  # (n, 6) per motion; NaN rows where the method failed
+    seconds: float  # total time over the frames / pairs
+    count: int  # frames or pairs timed
+    drift: tuple[float, float, float] | None = None  # drive: final error m, distance m, heading deg
+
+    @property
+    def failed(self) -> int:
+        return int(np.isnan(self.errors[:, 0]).sum())
+
+    @property
+    def mean_abs(self) -> np.ndarray:
+        return np.nanmean(np.abs(self.errors), axis=0)
+
+    @property
+    def off(self) -> int:
+        """Motions with an error above ``CONVERGED`` on some axis (failures included)."""
+        e = np.abs(np.nan_to_num(self.errors, nan=np.inf))
+        return int(np.count_nonzero(e.max(axis=1) >= CONVERGED))
+
+
+def _read_pair(pair: Path):
+    cfg = load_init(pair / "init.yaml")
+    frames = sorted((pair / "frames").glob("*.png"))
+    imgs = [cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) for p in frames]
+    _, gt, _ = read_motion_csv(pair / "groundtruth_motion.csv")
+    plane = Plane(cfg.ground.normal_array(), float(cfg.ground.distance))
+    return cfg.camera.K, plane, imgs, gt[0]
+
+
+def peer_on_pairs(peer, pairs: list[Path]) -> MethodResult:
+    errs, secs = [], 0.0
+    for pair in pairs:
+        K, plane, (i0, i1), gt = _read_pair(pair)
+        t0 = time.perf_counter()
+        H = peer.homography(peer.prepare(i0), peer.prepare(i1))
+        est = motion_from_homography(H, K, plane) if H is not None else None
+        secs += time.perf_counter() - t0
+        errs.append(motion_errors(est, gt) if est is not None else np.full(6, np.nan))
+    return MethodResult(peer.name, np.array(errs), secs, len(pairs))
+
+
+def peer_on_drive(peer, seq: Path) -> MethodResult:
+    """Frame-to-frame motions of a ``synth --preset drive`` folder, chained; decode timed."""
+    cfg = load_init(seq / "init.yaml")
+    K = cfg.camera.K
+    plane = Plane(cfg.ground.normal_array(), float(cfg.ground.distance))
+    paths = sorted((seq / "frames").glob("*.png"))
+    _, gt, _ = read_motion_csv(seq / "groundtruth_motion.csv")
+    _, gt_traj = read_tum(seq / "groundtruth.tum")
+    poses, motions, failed = [np.eye(4)], [], []
+    t0 = time.perf_counter()
+    prev = peer.prepare(cv2.imread(str(paths[0]), cv2.IMREAD_GRAYSCALE))
+    for path in paths[1:]:
+        cur = peer.prepare(cv2.imread(str(path), cv2.IMREAD_GRAYSCALE))
+        H = peer.homography(prev, cur)
+        est = motion_from_homography(H, K, plane) if H is not None else None
+        failed.append(est is None)
+        motion = est if est is not None else (motions[-1] if motions else np.eye(4))
+        motions.append(motion)
+        poses.append(poses[-1] @ motion)
+        plane = plane.in_frame(se3_inv(motion))  # into the current camera
+        prev = cur
+    secs = time.perf_counter() - t0
+    errs = np.array([np.full(6, np.nan) if f else motion_errors(m, g)
+                     for m, g, f in zip(motions, gt, failed)])
+    return MethodResult(peer.name, errs, secs, len(paths), final_drift(np.array(poses), gt_traj))
+
+
+def monovo_on_drive(seq: Path, out: Path) -> MethodResult:
+    t0 = time.perf_counter()
+    track_sequence(seq, None, out, TrackOptions())
+    secs = time.perf_counter() - t0
+    _, est, _ = read_motion_csv(out / "motion.csv")
+    _, gt, _ = read_motion_csv(seq / "groundtruth_motion.csv")
+    _, traj = read_tum(out / "trajectory.tum")
+    _, gt_traj = read_tum(seq / "groundtruth.tum")
+    errs = np.array([motion_errors(e, g) for e, g in zip(est, gt)])
+    return MethodResult("monovo", errs, secs, len(traj), final_drift(traj, gt_traj))
+
+
+# --------------------------------------------------------------------------- tables
+
+
+def results_table(results: list[MethodResult], *, unit: str, drive: bool) -> str:
+    head = "| method | " + " | ".join(AXES) + " | transl. avg (m) | rot. avg (deg) | failed | " \
+        f"any axis ≥ {CONVERGED:g} |"
+    if drive:
+        head += " final position error (% of distance) | final heading error (deg) |"
+    head += f" ms/{unit} | {unit}s/s |"
+    lines = [head, "|" + " --- |" * (head.count("|") - 1)]
+    for r in results:
+        m = r.mean_abs
+        fmt = "{:.2e}" if drive else "{:.5f}"  # drive motions are ~100x smaller
+        cells = [fmt.format(v) for v in (*m, m[:3].mean(), m[3:].mean())] + [str(r.failed), str(r.off)]
+        if drive:
+            err, dist, heading = r.drift
+            cells += [f"{100 * err / dist:.3f}", f"{heading:.3f}"]
+        cells += [f"{1000 * r.seconds / r.count:.1f}", f"{r.count / r.seconds:.1f}"]
+        lines.append(f"| {r.name} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def ratio_table(pairs: list[MethodResult] | None, drive: list[MethodResult] | None) -> str:
+    """monovo's mean abs error / the better peer's, per axis; monovo speed / ECC speed."""
+    lines = ["| | " + " | ".join(AXES) + " | transl. avg | rot. avg | monovo speed / ECC speed |",
+             "|" + " --- |" * (len(AXES) + 4)]
+    for label, res in (("pairs", pairs), ("drive", drive)):
+        if res is None:
+            continue
+        mono, peers = res[0], res[1:]
+        best = np.min([p.mean_abs for p in peers], axis=0)
+        ratio = mono.mean_abs / best
+        best_t = min(p.mean_abs[:3].mean() for p in peers)
+        best_r = min(p.mean_abs[3:].mean() for p in peers)
+        ecc = next(p for p in peers if p.name == EccPeer.name)
+        speed = (mono.count / mono.seconds) / (ecc.count / ecc.seconds)
+        cells = [f"{v:.3f}" for v in ratio] + [f"{mono.mean_abs[:3].mean() / best_t:.3f}",
+                                               f"{mono.mean_abs[3:].mean() / best_r:.3f}",
+                                               f"{speed:.2f}"]
+        lines.append(f"| {label}: monovo / better peer | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- validation
+
+
+def check(n_pairs: int = 10) -> None:
+    """Decomposition of exact homographies (must be exact), then both peers on noise-free pairs."""
+    with tempfile.TemporaryDirectory() as tmp:
+        root = Path(tmp) / "pairs"
+        synthesize(root, preset="pairs", frames=n_pairs, noise_var=0.0, seed=99)
+        pairs = sorted(p for p in root.iterdir() if p.name.startswith("pair_"))
+        worst = 0.0
+        for pair in pairs:
+            K, plane, _, gt = _read_pair(pair)
+            H = 3.7 * homography_from_motion(gt, K, plane)  # any scale
+            worst = max(worst, float(np.abs(motion_errors(motion_from_homography(H, K, plane), gt)).max()))
+        print(f"Exact homographies of {n_pairs} noise-free pairs, decomposed: largest error "
+              f"{worst:.1e} (m / deg)\n")
+        if worst > 1e-9:
+            raise SystemExit("decomposition check failed: conventions are wrong")
+        res = [peer_on_pairs(p, pairs) for p in (OrbPeer(), EccPeer())]
+        print(f"Both peers on the same {n_pairs} pairs without noise (seed 99):\n")
+        print(results_table(res, unit="pair", drive=False) + "\n")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--pairs", type=int, default=100, help="pairs (0: skip)")
+    ap.add_argument("--pair-noise-var", type=float, default=10.0)
+    ap.add_argument("--pair-seed", type=int, default=1, help="same default as paper_tables")
+    ap.add_argument("--frames", type=int, default=300, help="drive frames (0: skip)")
+    ap.add_argument("--size", default="512x512", help="drive frame size WxH")
+    ap.add_argument("--drive-noise-var", type=float, default=10.0)
+    ap.add_argument("--drive-seed", type=int, default=0, help="same default as benchmarks.drive")
+    ap.add_argument("--check", action="store_true", help="only validate the peers on noise-free pairs")
+    args = ap.parse_args()
+    one_core()
+    cv2.setRNGSeed(0)  # RANSAC draws
+    print(f"Machine: {machine()}\n")
+    check()
+    if args.check:
+        return
+    pair_res = drive_res = None
+    with tempfile.TemporaryDirectory() as tmp:
+        if args.pairs:
+            root = Path(tmp) / "pairs"
+            errs, _, secs = run_pairs(root, args.pairs, args.pair_noise_var, args.pair_seed,
+                                      TrackOptions())
+            pairs = sorted(p for p in root.iterdir() if p.name.startswith("pair_"))
+            pair_res = [MethodResult("monovo", errs, float(secs.sum()), len(pairs))]
+            pair_res += [peer_on_pairs(p, pairs) for p in (OrbPeer(), EccPeer())]
+            print(f"### {args.pairs} pairs of the paper protocol (688x544, noise variance "
+                  f"{args.pair_noise_var:g}, seed {args.pair_seed}), mean absolute error\n")
+            print("Time per pair: both frames in memory, each method processes both (monovo: "
+                  "frame-0 model + estimate; ORB: features of both + match + RANSAC; ECC: "
+                  "pyramids + alignment), plus the decomposition. One core.\n")
+            print(results_table(pair_res, unit="pair", drive=False) + "\n")
+        if args.frames:
+            w, h = (int(v) for v in args.size.split("x"))
+            seq = Path(tmp) / "drive"
+            synthesize(seq, preset="drive", frames=args.frames, size=(w, h),
+                       noise_var=args.drive_noise_var, seed=args.drive_seed)
+            drive_res = [monovo_on_drive(seq, Path(tmp) / "out")]
+            drive_res += [peer_on_drive(p, seq) for p in (OrbPeer(), EccPeer())]
+            print(f"### {args.frames}-frame drive ({args.size}, noise variance "
+                  f"{args.drive_noise_var:g}, seed {args.drive_seed}), frame to frame, mean "
+                  "absolute error of T_{k-1}_k\n")
+            print("Time per frame end to end: PNG decode + estimate (monovo: "
+                  "`runner.track_sequence`, writing its outputs). One core.\n")
+            print(results_table(drive_res, unit="frame", drive=True) + "\n")
+    print("### Ratios\n")
+    print(ratio_table(pair_res, drive_res))
+
+
+if __name__ == "__main__":
+    main()
