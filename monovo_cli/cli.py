@@ -114,13 +114,43 @@ class _Progress:
             self.bar.close()
 
 
-def _track_options(levels, threshold, max_points, robust, reanchor_fraction):
+def _track_options(levels, threshold, max_points, robust, reanchor_fraction, *,
+                   photometric=True, max_step=(None, None)):
     from monovo_cli.estimate import EstimatorOptions
     from monovo_cli.odometry import TrackOptions
 
     return TrackOptions(levels=levels, threshold=threshold, max_points=max_points,
-                        reanchor_fraction=reanchor_fraction,
-                        estimator=EstimatorOptions(robust=robust))
+                        reanchor_fraction=reanchor_fraction, max_step_m=max_step[0],
+                        max_step_deg=max_step[1],
+                        estimator=EstimatorOptions(robust=robust, photometric=photometric))
+
+
+def _parse_max_step(ctx, param, value):  # noqa: ARG001
+    """--max-step METRES[,DEGREES] -> (m, deg) with None for what is not given."""
+    if value is None:
+        return None, None
+    try:
+        parts = [float(v) for v in value.split(",")]
+    except ValueError:
+        parts = []
+    if not 1 <= len(parts) <= 2 or not all(p > 0 for p in parts):
+        raise click.BadParameter(f"expected METRES or METRES,DEGREES (positive), got {value!r}")
+    return parts[0], (parts[1] if len(parts) == 2 else None)
+
+
+def _tracking_options(f):
+    """Options of the sequence loop (track, and batch later)."""
+    f = click.option("--covariance", type=click.Path(path_type=Path), default=None,
+                     help="Write every frame's 6x6 covariance of (tx..rz) (m, rad) to this CSV.")(f)
+    f = click.option("--prior", type=click.Path(path_type=Path), default=None,
+                     help="A motion CSV (e.g. wheel odometry) used as each frame's initial guess.")(f)
+    f = click.option("--max-step", callback=_parse_max_step, default=None, metavar="M[,DEG]",
+                     help="Mark a frame lost when its motion exceeds this many metres (and degrees).")(f)
+    f = click.option("--no-photometric", is_flag=True,
+                     help="Do not estimate a per-frame brightness gain and bias.")(f)
+    f = click.option("--mask", type=click.Path(path_type=Path), default=None,
+                     help="PNG of the frame size; its non-zero pixels are never used.")(f)
+    return f
 
 
 def _model_options(f):
@@ -184,6 +214,10 @@ def synth(ctx, out, preset, frames, size, noise_var, seed, texture, max_translat
             raise click.BadParameter(f"expected WxH like 512x512, got {size!r}",
                                      param_hint="--size") from None
         wh = (w, h)
+    if not overwrite and out.is_dir() and any(out.iterdir()):
+        from monovo_cli.errors import OutputError
+
+        raise OutputError(f"{out}: already exists and is not empty; use --overwrite or another OUT")
     if overwrite and out.exists():
         import shutil
 
@@ -239,11 +273,13 @@ def init(ctx, seq, params, out, levels, threshold, max_points, robust, reanchor_
 @click.option("--skip-bad-frames", is_flag=True,
               help="Record unreadable frames after the first as lost and go on "
                    "[default: stop with an error, keeping the rows done].")
+@_tracking_options
 @_model_options
 @_common
 @click.pass_context
 def track(ctx, seq, params, out, model, overwrite, skip_bad_frames, levels, threshold, max_points,
-          robust, reanchor_fraction, quiet, verbose, groundtruth):
+          robust, reanchor_fraction, quiet, verbose, groundtruth, mask, no_photometric, max_step,
+          prior, covariance):
     """Estimate the motion of every frame of SEQ; write motion.csv and the trajectory.
 
     With -o DIR also trajectory.png, the path seen from above on the ground plane.
@@ -255,8 +291,9 @@ def track(ctx, seq, params, out, model, overwrite, skip_bad_frames, levels, thre
     bar = _Progress(quiet, "frame")
     try:
         s = track_sequence(seq, params, None if to_stdout else Path(out),
-                           _track_options(levels, threshold, max_points, robust, reanchor_fraction),
-                           groundtruth=groundtruth,
+                           _track_options(levels, threshold, max_points, robust, reanchor_fraction,
+                                          photometric=not no_photometric, max_step=max_step),
+                           groundtruth=groundtruth, mask=mask, prior=prior, covariance=covariance,
                            model=model, overwrite=overwrite, skip_bad_frames=skip_bad_frames,
                            progress=bar)
     finally:

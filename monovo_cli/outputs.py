@@ -96,6 +96,27 @@ class MotionWriter:
         self._stream.flush()
 
 
+class CovarianceWriter:
+    """Streams each frame's 6x6 covariance of (tx, ty, tz, rx, ry, rz) (m, rad), row-major.
+
+    Columns ``frame, c00, c01, ..., c55``; empty fields for a lost frame.
+    """
+
+    def __init__(self, stream: IO[str]) -> None:
+        self._stream = stream
+        cols = ["frame"] + [f"c{i}{j}" for i in range(6) for j in range(6)]
+        self._stream.write(",".join(cols) + "\n")
+        self._stream.flush()
+
+    def write(self, frame: int, cov: np.ndarray) -> None:
+        vals = [fmt(v) if math.isfinite(v) else "" for v in np.asarray(cov, float).ravel()]
+        self._stream.write(",".join([str(frame), *vals]) + "\n")
+        self._stream.flush()
+
+    def close(self) -> None:
+        self._stream.close()
+
+
 def trajectory_csv_text(frames: Sequence[int], timestamps: Sequence[float],
                         world_from_cam: Sequence[np.ndarray]) -> str:
     """trajectory.csv content: ``T_0_k`` per frame as translation + quaternion (qw >= 0)."""
@@ -230,28 +251,42 @@ def load_model(path: Path):
     from monovo_cli.ground import LevelPoints, Plane
     from monovo_cli.odometry import Keyframe
 
+    import zipfile
+
     path = Path(path)
+    not_model = f"{path}: not a monovo model (write one with 'monovo init')"
+    damaged = f"{path}: damaged or incomplete model; write it again with 'monovo init'"
     try:
+        with open(path, "rb") as f:
+            if f.read(4) != b"PK\x03\x04":  # an .npz is a zip archive
+                raise InputError(not_model)
         with np.load(path, allow_pickle=False) as z:
             if "format" not in z or str(z["format"]) != "monovo-model-1":
-                raise InputError(f"{path}: not a monovo model (write one with 'monovo init')")
+                raise InputError(not_model)
             d = {k: z[k] for k in z.files}
     except InputError:
         raise
-    except (OSError, ValueError, KeyError, EOFError) as exc:
-        raise InputError(f"{path}: cannot read model ({exc})") from None
-    c = d["camera"]
-    camera = PinholeCamera(int(c[0]), int(c[1]), float(c[2]), float(c[3]), float(c[4]), float(c[5]),
-                           tuple(float(v) for v in d["distortion"]))
-    plane = Plane(d["normal"].astype(float), float(d["distance"]))
-    levels = []
-    for lv in range(int(d["levels"])):
-        pts = LevelPoints(lv, camera.scaled(lv), *(d[f"l{lv}_{n}"] for n in
-                                                   ("uv", "X", "intensity", "grad", "tri", "bary")))
-        levels.append(KeyLevel.from_points(pts))
-    key = Keyframe(0, np.eye(4), plane, d["corners"], tuple(levels), float(d["noise_sigma"]),
-                   float(d["threshold"]))
-    return camera, tuple(int(v) for v in d["region"]), key
+    except OSError as exc:
+        raise InputError(f"{path}: cannot read model ({exc.strerror or exc})") from None
+    except (ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        raise InputError(damaged) from None
+    try:
+        c = d["camera"]
+        camera = PinholeCamera(int(c[0]), int(c[1]), float(c[2]), float(c[3]), float(c[4]),
+                               float(c[5]), tuple(float(v) for v in d["distortion"]))
+        plane = Plane(d["normal"].astype(float), float(d["distance"]))
+        levels = []
+        for lv in range(int(d["levels"])):
+            pts = LevelPoints(lv, camera.scaled(lv), *(d[f"l{lv}_{n}"] for n in
+                                                       ("uv", "X", "intensity", "grad", "tri",
+                                                        "bary")))
+            levels.append(KeyLevel.from_points(pts))
+        key = Keyframe(0, np.eye(4), plane, d["corners"], tuple(levels), float(d["noise_sigma"]),
+                       float(d["threshold"]))
+        region = tuple(int(v) for v in d["region"])
+    except (KeyError, ValueError, IndexError, TypeError):
+        raise InputError(damaged) from None
+    return camera, region, key
 
 
 def read_trajectory_csv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -21,11 +21,12 @@ from pathlib import Path
 import numpy as np
 
 from monovo_cli.config import InitConfig, check_frame_size, load_init
-from monovo_cli.errors import InputError, OutputError
+from monovo_cli.errors import InputError, OutputError, TrackingError
 from monovo_cli.frames import FrameSequence, find_init_yaml, resolve_sequence
 from monovo_cli.ground import Plane
 from monovo_cli.odometry import FrameResult, Keyframe, Odometry, TrackOptions, build_keyframe
 from monovo_cli.outputs import (
+    CovarianceWriter,
     MotionRow,
     MotionWriter,
     atomic_write_text,
@@ -64,7 +65,10 @@ def open_sequence(seq: Path, params: Path | None) -> tuple[FrameSequence, InitCo
         if params is None:
             raise InputError(f"{seq}: no init.yaml beside the frames; give one with -p init.yaml")
     cfg = load_init(Path(params))
-    first = frames.read(0)
+    try:
+        first = frames.read(0)
+    except InputError as exc:
+        raise InputError(f"{exc}; frame 0 carries the ground model, replace the file") from None
     h, w = first.image.shape
     check_frame_size(cfg, w, h, first.path)
     return frames, cfg
@@ -95,10 +99,21 @@ def prepare_out_dir(out_dir: Path, overwrite: bool) -> None:
 def init_model(seq: Path, params: Path | None, out: Path, options: TrackOptions) -> Keyframe:
     """``monovo init``: build the frame-0 ground model and save it to ``out`` (model.npz)."""
     frames, cfg = open_sequence(seq, params)
-    image = frames.read(0).image
-    key = build_keyframe(0, image, cfg.camera, _plane(cfg), cfg.ground.region, np.eye(4), options)
+    first = frames.read(0)
+    with _naming(first.path):
+        key = build_keyframe(0, first.image, cfg.camera, _plane(cfg), cfg.ground.region, np.eye(4),
+                             options)
     save_model(out, key, cfg.camera, cfg.ground.region)
     return key
+
+
+@contextlib.contextmanager
+def _naming(path: Path) -> Iterator[None]:
+    """Prefix a TrackingError (e.g. too few observation points) with the frame it is about."""
+    try:
+        yield
+    except TrackingError as exc:
+        raise TrackingError(f"{path}: {exc}") from None
 
 
 def _plane(cfg: InitConfig) -> Plane:
@@ -138,7 +153,8 @@ def _remove_stale_temporaries(out_dir: Path) -> None:
 def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options: TrackOptions, *,
                    model: Path | None = None, overwrite: bool = False,
                    skip_bad_frames: bool = False, checkpoint_every: int = 100,
-                   groundtruth: Path | None = None,
+                   groundtruth: Path | None = None, mask: Path | None = None,
+                   prior: Path | None = None, covariance: Path | None = None,
                    progress: Callable[[int, int], None] | None = None) -> TrackSummary:
     """``monovo track``: estimate every frame's motion and write the SPEC outputs.
 
@@ -149,9 +165,15 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     A frame after the first that cannot be read stops the run with an InputError (the rows
     done are kept); with ``skip_bad_frames`` it is recorded as ``lost`` at the
     constant-velocity prediction and tracking goes on.
+    ``mask`` a PNG of the frame size whose non-zero pixels are never used (rover body, a
+    fixed shadow); ``prior`` a motion CSV (SPEC columns) whose motions replace the
+    constant-velocity guess; ``covariance`` a CSV written row by row with each frame's full
+    6x6 covariance of (tx, ty, tz, rx, ry, rz) (m, rad).
     ``progress(done, total)`` is called after every frame.
     """
     frames, cfg = open_sequence(seq, params)
+    usable = _read_mask(Path(mask), cfg) if mask is not None else None
+    priors = _read_prior(Path(prior)) if prior is not None else {}
     gt_poses = None
     if groundtruth is not None:
         from monovo_cli.outputs import read_tum
@@ -164,7 +186,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
         cam, region, first_key = load_model(model)
         if (cam.width, cam.height) != (cfg.camera.width, cfg.camera.height):
             raise InputError(f"{model}: model is for {cam.width}x{cam.height} frames, "
-                             f"init.yaml for {cfg.camera.width}x{cfg.camera.height}")
+                             f"init.yaml for {cfg.camera.width}x{cfg.camera.height}; build one "
+                             "for these frames with 'monovo init'")
     if out_dir is not None:
         prepare_out_dir(out_dir, overwrite)
         for name in RESULT_FILES:  # stale results of an earlier run must not survive
@@ -183,11 +206,13 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
         atomic_write_text(Path(out_dir) / "trajectory.tum", tum_text(ts, poses))
 
     msds, lost, reanchored = [], 0, 0
+    cov_writer = None
     t0 = time.perf_counter()
     try:
         writer = MotionWriter(stream, with_std=True)
+        cov_writer = CovarianceWriter(_open_output(Path(covariance))) if covariance else None
         odo = Odometry(cfg.camera, _plane(cfg), cfg.ground.region, options,
-                       first_keyframe=first_key)
+                       first_keyframe=first_key, mask=usable)
         prev = None
         dist = 0.0
         for index in range(len(frames)):
@@ -203,12 +228,18 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                 log.warning("%s; recorded as lost (--skip-bad-frames)", exc)
                 res = odo.skip(index, float(frames.timestamps[index]))
             else:
-                step = odo.start if index == 0 else odo.step
-                res = step(frame.index, frame.timestamp, frame.image)
+                if index == 0:
+                    with _naming(frame.path):
+                        res = odo.start(frame.index, frame.timestamp, frame.image)
+                else:
+                    res = odo.step(frame.index, frame.timestamp, frame.image,
+                                   priors.get(frame.index))
             with _signals_held():
                 results.append((res.index, res.timestamp, res.world_from_cam))
                 if res.index > 0:
                     writer.write(_row(res))
+                    if cov_writer is not None:
+                        cov_writer.write(res.index, res.covariance)
                     msds.append(res.msd)
                     lost += res.status == "lost"
                     reanchored += res.status == "reanchored"
@@ -223,11 +254,42 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
             flush_trajectory()
             if out_dir is not None:
                 stream.close()
+            if cov_writer is not None:
+                cov_writer.close()
     seconds = time.perf_counter() - t0
     if out_dir is not None:
         _write_trajectory_plot(Path(out_dir), _plane(cfg), results, gt_poses)
     return TrackSummary(len(results), float(np.mean(msds)) if msds else 0.0, seconds, lost,
                         reanchored, dist, Path(out_dir) if out_dir is not None else None)
+
+
+def _read_mask(path: Path, cfg: InitConfig) -> np.ndarray:
+    """--mask PNG -> (H, W) bool of usable pixels (the PNG's non-zero pixels are excluded)."""
+    from monovo_cli.frames import read_gray
+
+    img = read_gray(path)
+    if img.shape != (cfg.camera.height, cfg.camera.width):
+        raise InputError(f"{path}: mask is {img.shape[1]}x{img.shape[0]} but frames are "
+                         f"{cfg.camera.width}x{cfg.camera.height}")
+    usable = img <= 0
+    if not usable.any():
+        raise InputError(f"{path}: the mask excludes every pixel (non-zero pixels are excluded)")
+    return usable
+
+
+def _read_prior(path: Path) -> dict[int, np.ndarray]:
+    """--prior CSV (SPEC motion columns) -> {frame: T_{k-1}_k}."""
+    from monovo_cli.outputs import read_motion_csv
+
+    idx, poses, _ = read_motion_csv(path)
+    return {int(k): p for k, p in zip(idx, poses)}
+
+
+def _open_output(path: Path):
+    try:
+        return open(path, "w", newline="")
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot write ({exc.strerror})") from None
 
 
 def _row(res: FrameResult) -> MotionRow:
