@@ -1,0 +1,274 @@
+"""Speed and memory: frames/s end to end and estimator-only, a per-stage profile, peak RSS.
+
+    python -m benchmarks.speed                         # 200-frame drives at 4 sizes, ~6 min
+    python -m benchmarks.speed --sizes 512x512 --frames 100
+    python -m benchmarks.speed --memory                # also peak RSS over 500 and 5000 frames
+                                                       # (renders 5000 frames once: ~10 min more)
+
+For each size a ``monovo synth --preset drive`` sequence (noise variance 10, seed 0) is
+rendered (not timed), then, on one core (OpenCV, BLAS and OpenMP on one thread):
+
+* **end to end** -- ``runner.track_sequence`` into a temporary directory, as ``monovo track``
+  runs it: PNG decoding, tracking, motion.csv streaming, trajectory files and plot. Frames/s
+  over the whole call, and per frame between the first and the last frame (without the
+  fixed start-up and final writing);
+* **estimator only** -- the frames decoded into memory first, then ``odometry.track``;
+* **ECC peer** -- ``benchmarks.peers.EccPeer`` frame to frame on the same PNGs, decoding
+  included, for the speed ratio;
+* **stages** -- a cProfile of the end-to-end run, each function's own time attributed to the
+  nearest enclosing stage: decode (``frames.read_gray``/``decode_gray``), pyramid
+  (``pyramid.build_pyramid``), warp+sample (``estimate.residuals``, ``sample_bilinear``,
+  ``_probe_move``: transforming, projecting and interpolating the points), normal equations
+  (the rest of ``estimate._solve_level``: the weighted products O^T W O, O^T W r, the solve),
+  robust weights (``robust_weights``, ``_rho*``), keyframes (``odometry.build_keyframe``:
+  point selection at re-anchoring) and other. Profiling slows Python-heavy code more than
+  numpy/OpenCV calls, so shares are approximate; ms/frame are the shares times the
+  unprofiled end-to-end time.
+
+``--memory``: peak resident memory (the child's own VmHWM, read at its exit) of a
+``monovo track SEQ -o OUT -q`` subprocess over the first 500 and all 5000 frames of one
+512x512 drive (the 500-frame sequence is a folder of symlinks to the first frames).
+"""
+
+from __future__ import annotations
+
+import argparse
+import cProfile
+import os
+import pstats
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from benchmarks.common import final_drift, machine, one_core
+from benchmarks.peers import EccPeer, peer_on_drive
+from monovo_cli.config import load_init
+from monovo_cli.frames import FrameSequence
+from monovo_cli.ground import Plane
+from monovo_cli.odometry import TrackOptions, track
+from monovo_cli.outputs import read_tum
+from monovo_cli.runner import track_sequence
+from monovo_cli.synth import synthesize
+
+SIZES = ("256x256", "512x512", "688x544", "1024x1024")
+TARGET_FPS = {"256x256": 150.0, "512x512": 50.0, "1024x1024": 12.0}  # issue 5, end to end
+
+# Stage of a monovo function (by name); functions not named here take the stage of their caller.
+STAGES = {
+    "read_gray": "decode", "decode_gray": "decode",
+    "build_pyramid": "pyramid",
+    "residuals": "warp+sample", "sample_bilinear": "warp+sample", "_probe_move": "warp+sample",
+    "_solve_level": "normal equations",
+    "robust_weights": "robust weights", "_rho_mean": "robust weights", "_rho": "robust weights",
+    "_robust_cost": "robust weights", "_robust_cost_at": "robust weights",
+    "build_keyframe": "keyframes",
+}
+STAGE_ORDER = ("decode", "pyramid", "warp+sample", "normal equations", "robust weights",
+               "keyframes", "other")
+
+
+# --------------------------------------------------------------------------- timing
+
+
+def end_to_end(seq: Path, out: Path) -> dict:
+    """``runner.track_sequence`` timed as a whole and per frame (first to last frame done)."""
+    stamps: list[float] = []
+    t0 = time.perf_counter()
+    s = track_sequence(seq, None, out, TrackOptions(), overwrite=True,
+                       progress=lambda done, total: stamps.append(time.perf_counter()))
+    wall = time.perf_counter() - t0
+    _, est = read_tum(out / "trajectory.tum")
+    _, gt = read_tum(seq / "groundtruth.tum")
+    err, dist, _ = final_drift(est, gt)
+    return {"frames": s.frames, "wall": wall, "fps": s.frames / wall,
+            "fps_steady": (len(stamps) - 1) / (stamps[-1] - stamps[0]),
+            "lost": s.lost, "reanchored": s.reanchored, "drift_pct": 100 * err / dist}
+
+
+def estimator_only(seq: Path) -> float:
+    """Frames/s of ``odometry.track`` over frames decoded beforehand."""
+    frames = FrameSequence(seq)
+    cfg = load_init(seq / "init.yaml")
+    imgs = [(f.index, f.timestamp, f.image) for f in frames]
+    plane = Plane(cfg.ground.normal_array(), float(cfg.ground.distance))
+    t0 = time.perf_counter()
+    n = sum(1 for _ in track(imgs, cfg.camera, plane, cfg.ground.region, TrackOptions()))
+    return n / (time.perf_counter() - t0)
+
+
+# --------------------------------------------------------------------------- profile
+
+
+def stage_shares(stats: pstats.Stats) -> dict[str, float]:
+    """Seconds per stage: each function's own time goes to its stage, or is split over its
+    callers (in proportion to the time it spent under each) and so up to the nearest staged
+    ancestor; time that reaches no staged function is "other"."""
+    table = stats.stats  # func -> (cc, nc, tottime, cumtime, callers{caller: (cc, nc, tt, ct)})
+    memo: dict[tuple, dict[str, float]] = {}
+
+    def own_stage(func: tuple) -> str | None:
+        filename, _, name = func
+        return STAGES.get(name) if "monovo_cli" in filename else None
+
+    def distribution(func: tuple, active: frozenset) -> dict[str, float]:
+        """Shares (sum 1) of the stages a unit of time spent in ``func`` belongs to."""
+        stage = own_stage(func)
+        if stage is not None:
+            return {stage: 1.0}
+        if func in memo:
+            return memo[func]
+        callers = table.get(func, (0, 0, 0.0, 0.0, {}))[4]
+        weights = {c: v[3] for c, v in callers.items() if c not in active}
+        total = sum(weights.values())
+        if total <= 0.0:
+            return {"other": 1.0}
+        out: dict[str, float] = {}
+        for c, w in weights.items():
+            for st, share in distribution(c, active | {func}).items():
+                out[st] = out.get(st, 0.0) + share * w / total
+        memo[func] = out
+        return out
+
+    seconds = dict.fromkeys(STAGE_ORDER, 0.0)
+    for func, (_, _, tottime, _, _) in table.items():
+        for st, share in distribution(func, frozenset()).items():
+            seconds[st] += tottime * share
+    return seconds
+
+
+def profile_stages(seq: Path, out: Path) -> tuple[dict[str, float], list[tuple[str, float]]]:
+    """Stage shares (fractions) of a profiled end-to-end run, and the top functions by own time."""
+    prof = cProfile.Profile()
+    prof.enable()
+    track_sequence(seq, None, out, TrackOptions(), overwrite=True)
+    prof.disable()
+    stats = pstats.Stats(prof)
+    seconds = stage_shares(stats)
+    total = sum(seconds.values())
+    top = sorted(stats.stats.items(), key=lambda kv: kv[1][2], reverse=True)[:8]
+    top_share = [(f"{Path(f[0]).name}:{f[2]}" if f[0] != "~" else f[2], v[2] / total) for f, v in top]
+    return {k: v / total for k, v in seconds.items()}, top_share
+
+
+# --------------------------------------------------------------------------- memory
+
+
+# Runs ``monovo`` in the child and, at its exit, writes the child's own peak RSS (VmHWM of
+# /proc/self/status, kB) to the file named by argv[1]. ru_maxrss cannot be used: Linux carries
+# the parent's high-water mark over fork/exec into the child's (and this parent is large).
+_CHILD = """
+import atexit, runpy, sys
+report = sys.argv[1]
+def _peak():
+    with open("/proc/self/status") as f:
+        kb = next(line.split()[1] for line in f if line.startswith("VmHWM:"))
+    with open(report, "w") as f:
+        f.write(kb)
+atexit.register(_peak)
+sys.argv = ["monovo"] + sys.argv[2:]
+runpy.run_module("monovo_cli", run_name="__main__")
+"""
+
+
+def peak_rss_mb(seq: Path, out: Path) -> tuple[float, float]:
+    """(peak RSS MB, seconds) of ``monovo track SEQ -o OUT`` in a child process, one core."""
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    report = out.with_name(out.name + ".vmhwm")
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-c", _CHILD, str(report), "track", str(seq), "-o", str(out),
+                    "-q", "--overwrite"], env=env, check=True)
+    secs = time.perf_counter() - t0
+    return int(report.read_text()) / 1024.0, secs
+
+
+def prefix_sequence(full: Path, dest: Path, n: int) -> Path:
+    """A sequence folder whose frames are symlinks to the first ``n`` frames of ``full``."""
+    (dest / "frames").mkdir(parents=True)
+    (dest / "init.yaml").symlink_to(full / "init.yaml")
+    for p in sorted((full / "frames").glob("*.png"))[:n]:
+        (dest / "frames" / p.name).symlink_to(p)
+    return dest
+
+
+def memory(tmp: Path, counts: list[int], seed: int) -> list[tuple[int, float, float]]:
+    full = tmp / "mem_full"
+    t0 = time.perf_counter()
+    synthesize(full, preset="drive", frames=max(counts), size=(512, 512), noise_var=10.0, seed=seed)
+    print(f"(rendered {max(counts)} frames in {time.perf_counter() - t0:.0f} s)\n", file=sys.stderr)
+    rows = []
+    for n in sorted(counts):
+        seq = full if n == max(counts) else prefix_sequence(full, tmp / f"mem_{n}", n)
+        rss, secs = peak_rss_mb(seq, tmp / f"mem_out_{n}")
+        rows.append((n, rss, secs))
+    return rows
+
+
+# --------------------------------------------------------------------------- main
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sizes", nargs="+", default=list(SIZES), help="WxH drives")
+    ap.add_argument("--frames", type=int, default=200, help="frames per drive")
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--no-profile", action="store_true", help="skip the per-stage profile")
+    ap.add_argument("--memory", action="store_true", help="peak RSS over --memory-frames frames")
+    ap.add_argument("--memory-frames", type=int, nargs="+", default=[500, 5000])
+    args = ap.parse_args()
+    one_core()
+    print(f"Machine: {machine()}\n")
+    speed_rows, stage_cols = [], []
+    with tempfile.TemporaryDirectory() as tmp_name:
+        tmp = Path(tmp_name)
+        for size in args.sizes:
+            w, h = (int(v) for v in size.split("x"))
+            seq = tmp / f"drive_{size}"
+            synthesize(seq, preset="drive", frames=args.frames, size=(w, h), noise_var=10.0,
+                       seed=args.seed)
+            e2e = end_to_end(seq, tmp / f"out_{size}")
+            est_fps = estimator_only(seq)
+            ecc = peer_on_drive(EccPeer(), seq)
+            ecc_fps = ecc.count / ecc.seconds
+            speed_rows.append((size, e2e, est_fps, ecc_fps))
+            if not args.no_profile:
+                shares, top = profile_stages(seq, tmp / f"out_{size}")
+                stage_cols.append((size, shares, top, 1000.0 / e2e["fps"]))
+            print(f"({size} done)", file=sys.stderr)
+        mem_rows = memory(tmp, args.memory_frames, args.seed) if args.memory else None
+
+    print(f"### Frames/s on one core ({args.frames}-frame drives, noise variance 10, seed "
+          f"{args.seed})\n")
+    print("| size | end to end, whole call (frames/s) | end to end, per frame (frames/s) | "
+          "estimator only (frames/s) | ms/frame end to end | target end to end | ECC peer, "
+          "end to end (frames/s) | monovo / ECC | lost | re-anchored | final error (% of distance) |")
+    print("|" + " --- |" * 11)
+    for size, e, est_fps, ecc_fps in speed_rows:
+        target = f"≥ {TARGET_FPS[size]:g}" if size in TARGET_FPS else "–"
+        print(f"| {size} | {e['fps']:.1f} | {e['fps_steady']:.1f} | {est_fps:.1f} | "
+              f"{1000 / e['fps']:.1f} | {target} | {ecc_fps:.1f} | {e['fps'] / ecc_fps:.2f} | "
+              f"{e['lost']} | {e['reanchored']} | {e['drift_pct']:.3f} |")
+    if stage_cols:
+        print("\n### Time per frame by stage (cProfile of the end-to-end run; % of the profiled "
+              "time, and ms/frame = share × unprofiled end-to-end time)\n")
+        print("| stage | " + " | ".join(s for s, _, _, _ in stage_cols) + " |")
+        print("|" + " --- |" * (len(stage_cols) + 1))
+        for st in STAGE_ORDER:
+            cells = [f"{100 * sh[st]:.1f} % ({sh[st] * ms:.2f} ms)" for _, sh, _, ms in stage_cols]
+            print(f"| {st} | " + " | ".join(cells) + " |")
+        for size, _, top, _ in stage_cols:
+            print(f"\nTop functions by own time at {size}: "
+                  + ", ".join(f"{name} {100 * s:.1f} %" for name, s in top))
+    if mem_rows is not None:
+        print("\n### Peak memory of `monovo track` (512x512, one core, child process)\n")
+        print("| frames | peak RSS (MB) | wall time (s) | frames/s |")
+        print("| --- | --- | --- | --- |")
+        for n, rss, secs in mem_rows:
+            print(f"| {n} | {rss:.1f} | {secs:.1f} | {n / secs:.1f} |")
+        growth = 100 * (mem_rows[-1][1] / mem_rows[0][1] - 1)
+        print(f"\nPeak RSS over {mem_rows[-1][0]} frames vs {mem_rows[0][0]}: {growth:+.1f} %")
+
+
+if __name__ == "__main__":
+    main()
