@@ -8,7 +8,9 @@ distance between the triangle's vertices projected with the estimated pose and w
 true pose (``groundtruth.tum``), for every vertex the truth shows inside the image. Two
 triangles: the default one (equilateral, centred in the ground region) and a wide one
 spanning the region (its bottom corners and the middle of its top edge). Then reads the
-video back with imageio and checks its frame count and size.
+video back with imageio and checks its frame count and size. Where evo is installed
+(``pip install '.[evo]'``) it also compares ``monovo eval``'s ATE with evo's on the tracked
+trajectory.
 """
 
 from __future__ import annotations
@@ -70,6 +72,7 @@ def measure(root: Path, frames: int, size: tuple[int, int], seed: int, noise_var
 
     import imageio.v2 as iio
 
+    evo = evo_check(out / "trajectory.tum", seq / "groundtruth.tum")
     reader = iio.get_reader(out / "overlay.mp4")
     meta = reader.get_meta_data()
     n_read, shape = 0, None
@@ -81,7 +84,33 @@ def measure(root: Path, frames: int, size: tuple[int, int], seed: int, noise_var
             "video_frames_read": n_read, "video_shape": shape, "codec": meta.get("codec"),
             "pix_fmt": meta.get("pix_fmt"), "video_bytes": (out / "overlay.mp4").stat().st_size,
             "lost": status.count("lost"), "reanchored": status.count("reanchored"),
-            "t_track": t_track, "t_overlay": t_overlay}
+            "t_track": t_track, "t_overlay": t_overlay, "evo": evo}
+
+
+def evo_check(est_path: Path, gt_path: Path) -> list[tuple[str, float, float]] | None:
+    """``[(alignment, monovo ATE, evo ATE)]`` in m, or None without evo."""
+    try:
+        from evo.core import metrics, sync
+        from evo.tools import file_interface
+    except ImportError:
+        return None
+    from monovo_cli.evaluate import evaluate
+
+    ts_e, e = read_tum(est_path)
+    ts_g, g = read_tum(gt_path)
+    ours = evaluate(ts_e, e, ts_g, g, align=True)
+    rows = []
+    for align, mine in ((False, ours.ate_rmse), (True, ours.ate_rmse_aligned)):
+        ref = file_interface.read_tum_trajectory_file(str(gt_path))
+        est = file_interface.read_tum_trajectory_file(str(est_path))
+        ref, est = sync.associate_trajectories(ref, est)
+        if align:
+            est.align(ref, correct_scale=False)
+        ape = metrics.APE(metrics.PoseRelation.translation_part)
+        ape.process_data((ref, est))
+        rows.append(("SE(3) aligned" if align else "none", mine,
+                     float(ape.get_statistic(metrics.StatisticsType.rmse))))
+    return rows
 
 
 def main() -> None:
@@ -112,6 +141,13 @@ def main() -> None:
           f"{r['video_shape'][1]}x{r['video_shape'][0]} ({r['codec']}, {r['pix_fmt']}, "
           f"{r['video_bytes'] / 1e6:.1f} MB); expected {r['frames']} frames of {w}x{h}: "
           f"{'ok' if ok else 'MISMATCH'}")
+    if r["evo"] is None:
+        print("\nevo not installed: ATE cross-check skipped (pip install '.[evo]')")
+    else:
+        print("\n| ATE alignment | monovo eval (m) | evo_ape (m) | difference (m) |")
+        print("| --- | --- | --- | --- |")
+        for name, mine, theirs in r["evo"]:
+            print(f"| {name} | {mine:.9f} | {theirs:.9f} | {abs(mine - theirs):.1e} |")
 
 
 if __name__ == "__main__":

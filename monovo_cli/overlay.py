@@ -294,20 +294,22 @@ class OverlayRenderer:
     """Draws the glued triangle (and optionally the residual-coloured points) into frames.
 
     ``plane`` is the ground in camera-0 coordinates, ``triangle`` (3, 3) m its vertices there,
-    ``region`` the ground rectangle (px) of init.yaml. Keeps only the anchor points between
+    ``region`` the ground rectangle (px) of init.yaml; ``max_points`` caps the points drawn
+    (default: one per 150 px^2 of image). Keeps only the anchor points between
     frames (when ``points``): they are re-picked on frames whose status is ``reanchored`` and
     when fewer than half of them stay in view.
     """
 
     def __init__(self, camera: PinholeCamera, plane: Plane, triangle: np.ndarray, *,
                  region: tuple[int, int, int, int] | None = None, points: bool = False,
-                 max_points: int = 1500, style: OverlayStyle | None = None) -> None:
+                 max_points: int | None = None, style: OverlayStyle | None = None) -> None:
         self.camera = camera
         self.plane = plane
         self.triangle = np.asarray(triangle, dtype=float)
         self.region = region or (0, 0, camera.width, camera.height)
         self.points = points
-        self.max_points = max_points
+        # about one point per 150 px^2 of image: dense enough to see, sparse enough to read
+        self.max_points = max_points or max(100, camera.width * camera.height // 150)
         self.style = style or OverlayStyle()
         self.near = NEAR_FRACTION * plane.distance
         self._anchor: AnchorPoints | None = None

@@ -24,7 +24,7 @@ BACKGROUND = (255, 255, 255)
 GRID = (230, 230, 230)
 AXIS = (90, 90, 90)
 ESTIMATE = (180, 100, 20)      # blue
-TRUTH = (60, 170, 60)          # green
+TRUTH = (150, 215, 150)        # light green, drawn wide under the estimate
 START = (40, 160, 40)
 END = (40, 40, 200)
 KEYFRAME = (0, 150, 255)       # orange
@@ -141,7 +141,7 @@ def plot_trajectory(world_from_cam: np.ndarray, plane: Plane, *,
     thick = max(1, int(round(w / 400.0)))
     r = max(3, int(round(w / 130.0)))
     if gt is not None:
-        cv2.polylines(img, [poly(gt)], False, TRUTH, thick, cv2.LINE_AA, sh)
+        cv2.polylines(img, [poly(gt)], False, TRUTH, 4 * thick, cv2.LINE_AA, sh)
     cv2.polylines(img, [poly(est)], False, ESTIMATE, thick, cv2.LINE_AA, sh)
     e = to_px(est)
     if statuses is not None:
@@ -183,7 +183,8 @@ def plot_trajectory(world_from_cam: np.ndarray, plane: Plane, *,
         cy = ly + 4 + row * i + row // 2
         cx = lx + 6 + r
         if kind == "line":
-            cv2.line(img, (cx - r, cy), (cx + r, cy), colour, thick + 1, cv2.LINE_AA)
+            wide = 4 * thick if colour == TRUTH else thick + 1
+            cv2.line(img, (cx - r, cy), (cx + r, cy), colour, wide, cv2.LINE_AA)
         elif kind == "dot":
             cv2.circle(img, (cx, cy), r, colour, -1, cv2.LINE_AA)
         elif kind == "small":
