@@ -159,8 +159,9 @@ def _model_options(f):
                      help="Re-anchor when fewer of the keyframe's points than this stay in view.")(f)
     f = click.option("--robust", type=click.Choice(["huber", "tukey", "none"]), default="huber",
                      show_default=True, help="M-estimator of the IRLS weights.")(f)
-    f = click.option("--max-points", type=click.IntRange(min=50), default=20000, show_default=True,
-                     help="Cap on observation points at full resolution (spread evenly).")(f)
+    f = click.option("--max-points", type=click.IntRange(min=50), default=None,
+                     help="Cap on observation points at full resolution, spread evenly "
+                          "[default: one per 16 pixels, at most 50000].")(f)
     f = click.option("--threshold", type=click.FloatRange(min=0.0, min_open=True), default=None,
                      help="delta_1: Sobel magnitude (grey levels/px) an observation point needs "
                           "[default: 3x the noise's Sobel std, estimated from frame 0].")(f)

@@ -290,11 +290,13 @@ def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float,
     H = np.eye(npar)
     iterations = 0
     min_valid = max(opts.min_valid_points, npar)
+    scale = None  # the robust scale, from this level's first residuals (MAD)
     for _ in range(max_iterations):
         rv = r[valid]
         if len(rv) < min_valid:
             break
-        wv, scale = robust_weights(rv, opts.robust, huber_k=opts.huber_k, tukey_c=opts.tukey_c)
+        wv, scale = robust_weights(rv, opts.robust, huber_k=opts.huber_k, tukey_c=opts.tukey_c,
+                                   scale=scale)
         w = np.zeros(n, np.float32)
         w[valid] = wv
         Jw = J * w[:, None]

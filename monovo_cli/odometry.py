@@ -48,8 +48,10 @@ class TrackOptions:
     """Tracking settings.
 
     ``threshold`` is the paper's delta_1 (Sobel magnitude, grey levels/px; None: from the
-    keyframe's noise); ``max_points`` caps the finest level's observation points (coarser
-    levels get a quarter per level). Re-anchor when fewer than ``reanchor_fraction`` of the
+    keyframe's noise); ``max_points`` caps the finest level's observation points (None: one
+    per ``pixels_per_point`` pixels of the image, at most 50000; coarser levels get a quarter
+    per level). With a motion prediction, estimation starts at pyramid level
+    ``predicted_top_level`` instead of the top (the prediction is within a pixel or two). Re-anchor when fewer than ``reanchor_fraction`` of the
     keyframe's points stay in view or the model covers < ``min_footprint`` of the image.
     A frame is lost when fewer than ``min_inliers`` of its points agree within the noise,
     its msd exceeds ``msd_factor`` times the recent median, the normal matrix's condition
@@ -59,7 +61,9 @@ class TrackOptions:
 
     levels: int | None = None
     threshold: float | None = None
-    max_points: int = 20000
+    max_points: int | None = None
+    pixels_per_point: int = 16
+    predicted_top_level: int = 2
     min_points: int = 50
     reanchor_fraction: float = 0.6
     min_footprint: float = 0.2
@@ -126,6 +130,7 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
     sigma = estimate_noise_sigma(image)
     threshold = options.threshold if options.threshold is not None else default_threshold(sigma)
     corners = rectangle_corners(camera, plane, region)
+    budget = point_budget(options, camera)
     if not np.all(np.isfinite(corners)) or np.any(corners[:, 2] <= 0):
         raise TrackingError("the ground plane is not in front of the camera over the region")
     levels = []
@@ -136,7 +141,7 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
             m = cv2.resize(m.astype(np.uint8), (cam.width, cam.height),
                            interpolation=cv2.INTER_NEAREST).astype(bool)
         pts = select_points(pyr[lv], cam, plane, corners, level=lv, threshold=threshold,
-                            max_points=max(options.max_points // (4 ** lv), 200), mask=m)
+                            max_points=max(budget // (4 ** lv), 200), mask=m)
         if lv == 0:
             require_points(pts, minimum=options.min_points, threshold=threshold)
         levels.append(KeyLevel.from_points(pts))
@@ -144,6 +149,13 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
     while len(levels) > 1 and len(levels[-1].points) < 30:
         levels.pop()
     return Keyframe(index, np.array(world_from_key), plane, corners, tuple(levels), sigma, threshold)
+
+
+def point_budget(options: TrackOptions, camera: PinholeCamera) -> int:
+    """Observation points at full resolution: ``max_points`` or one per ``pixels_per_point`` px."""
+    if options.max_points is not None:
+        return int(options.max_points)
+    return int(min(50000, max(2000, camera.width * camera.height // options.pixels_per_point)))
 
 
 def footprint(camera: PinholeCamera, corners_cur: np.ndarray) -> float:
@@ -229,15 +241,16 @@ class Odometry:
             return self._lost(index, timestamp, "constant or invalid image")
         pyr = build_pyramid(image, len(key.levels))
         searched = False
+        first_level = self.options.predicted_top_level
         if prior_motion is not None:
             guess = se3_inv(prior_motion) @ self._cur_from_key_prev
-        elif self._velocity is not None:
+        elif self._velocity is not None and not self._pending_reanchor:
             guess = self._velocity @ self._cur_from_key_prev
         else:
             guess = self._search(key, pyr, self._cur_from_key_prev)
-            searched = True
+            searched, first_level = True, None
         est = estimate_motion(key.levels, pyr, guess, options=self.options.estimator,
-                              gain=self._gain, bias=self._bias)
+                              gain=self._gain, bias=self._bias, first_level=first_level)
         reason = self._failure(est, key)
         if reason and not searched:
             retry = estimate_motion(key.levels, pyr, self._search(key, pyr, guess),
