@@ -51,8 +51,9 @@ class TrackOptions:
     keyframe's noise); ``max_points`` caps the finest level's observation points (None: one
     per ``pixels_per_point`` pixels of the image, at most 50000; coarser levels get a quarter
     per level). With a motion prediction, estimation starts at pyramid level
-    ``predicted_top_level`` instead of the top (the prediction is within a pixel or two). Re-anchor when fewer than ``reanchor_fraction`` of the
-    keyframe's points stay in view or the model covers < ``min_footprint`` of the image.
+    ``predicted_top_level`` instead of the top (the prediction is within a pixel or two).
+    Re-anchor when fewer than ``reanchor_fraction`` of the keyframe's points stay in view
+    or the model covers < ``min_footprint`` of the image.
     A frame is lost when fewer than ``min_inliers`` of its points agree within the noise,
     its msd exceeds ``msd_factor`` times the recent median, the normal matrix's condition
     number exceeds ``max_condition``, the finest level hits the iteration cap, or its motion

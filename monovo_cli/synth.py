@@ -696,7 +696,8 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
         "preset": preset, "seed": seed, "frames": frames, "size": [width, height],
         "noise_var": float(noise_var), "max_translation": float(max_translation),
         "max_rotation_deg": float(max_rotation_deg), "exposure": bool(exposure),
-        "texture": texture_desc, "shadow": float(shadow), "low_texture": bool(low_texture), "texture_texels": [int(tex.shape[1]), int(tex.shape[0])],
+        "texture": texture_desc, "shadow": float(shadow), "low_texture": bool(low_texture),
+        "texture_texels": [int(tex.shape[1]), int(tex.shape[0])],
         "metres_per_texel": metres_per_texel, "supersample": SUPERSAMPLE,
     }
     # All geometry first (it can still reject the arguments), then write.
