@@ -6,6 +6,7 @@ import datetime
 import os
 import platform
 import subprocess
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -70,6 +71,32 @@ def axis_table(rows: list[tuple[str, np.ndarray]], *, digits: int = 5) -> str:
                                                    f"{v[3:].mean():.{digits}f}"]
         lines.append(f"| {label} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
+
+
+class Stopwatch:
+    """Accumulates wall-clock and CPU seconds of this process over ``with`` blocks.
+
+    On a shared machine the wall time grows with other processes' load while the CPU time
+    (one thread: numpy, OpenCV and BLAS are limited to one) stays close to the unloaded
+    wall time, so the scripts print both.
+    """
+
+    def __init__(self) -> None:
+        self.wall = 0.0
+        self.cpu = 0.0
+
+    def __enter__(self) -> Stopwatch:
+        self._w, self._c = time.perf_counter(), time.process_time()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.wall += time.perf_counter() - self._w
+        self.cpu += time.process_time() - self._c
+
+
+def load() -> str:
+    """The 1-minute load average and the core count, e.g. 'load 1.2 on 2 cores'."""
+    return f"load {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores"
 
 
 def one_core() -> None:

@@ -140,7 +140,7 @@ def main() -> None:
     for nv in args.noise_var:
         with tempfile.TemporaryDirectory() as tmp:
             root = Path(tmp) / "pairs"
-            errs, ok, _ = run_pairs(root, args.pairs, nv, args.seed, TrackOptions())
+            errs, ok, _, _ = run_pairs(root, args.pairs, nv, args.seed, TrackOptions())
             if infos is None:  # the geometry is the same at every noise level
                 cam, tex, scenes = pair_scenes(root)
                 renderer = GroundRenderer(cam, tex)

@@ -40,14 +40,13 @@ from __future__ import annotations
 
 import argparse
 import tempfile
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from benchmarks.common import AXES, final_drift, machine, motion_errors, one_core
+from benchmarks.common import AXES, Stopwatch, final_drift, load, machine, motion_errors, one_core
 from benchmarks.paper_tables import run_pairs
 from monovo_cli.config import load_init
 from monovo_cli.geometry import make_pose, se3_inv
@@ -168,7 +167,8 @@ class EccPeer:
 class MethodResult:
     name: str
     errors: np.ndarray  # (n, 6) per motion; NaN rows where the method failed
-    seconds: float  # total time over the frames / pairs
+    seconds: float  # total wall time over the frames / pairs
+    cpu: float  # total CPU time of this process over the same
     count: int  # frames or pairs timed
     drift: tuple[float, float, float] | None = None  # drive: final error m, distance m, heading deg
 
@@ -197,15 +197,14 @@ def _read_pair(pair: Path):
 
 
 def peer_on_pairs(peer, pairs: list[Path]) -> MethodResult:
-    errs, secs = [], 0.0
+    errs, watch = [], Stopwatch()
     for pair in pairs:
         K, plane, (i0, i1), gt = _read_pair(pair)
-        t0 = time.perf_counter()
-        H = peer.homography(peer.prepare(i0), peer.prepare(i1))
-        est = motion_from_homography(H, K, plane) if H is not None else None
-        secs += time.perf_counter() - t0
+        with watch:
+            H = peer.homography(peer.prepare(i0), peer.prepare(i1))
+            est = motion_from_homography(H, K, plane) if H is not None else None
         errs.append(motion_errors(est, gt) if est is not None else np.full(6, np.nan))
-    return MethodResult(peer.name, np.array(errs), secs, len(pairs))
+    return MethodResult(peer.name, np.array(errs), watch.wall, watch.cpu, len(pairs))
 
 
 def peer_on_drive(peer, seq: Path) -> MethodResult:
@@ -217,34 +216,33 @@ def peer_on_drive(peer, seq: Path) -> MethodResult:
     _, gt, _ = read_motion_csv(seq / "groundtruth_motion.csv")
     _, gt_traj = read_tum(seq / "groundtruth.tum")
     poses, motions, failed = [np.eye(4)], [], []
-    t0 = time.perf_counter()
-    prev = peer.prepare(cv2.imread(str(paths[0]), cv2.IMREAD_GRAYSCALE))
-    for path in paths[1:]:
-        cur = peer.prepare(cv2.imread(str(path), cv2.IMREAD_GRAYSCALE))
-        H = peer.homography(prev, cur)
-        est = motion_from_homography(H, K, plane) if H is not None else None
-        failed.append(est is None)
-        motion = est if est is not None else (motions[-1] if motions else np.eye(4))
-        motions.append(motion)
-        poses.append(poses[-1] @ motion)
-        plane = plane.in_frame(se3_inv(motion))  # into the current camera
-        prev = cur
-    secs = time.perf_counter() - t0
+    with Stopwatch() as watch:
+        prev = peer.prepare(cv2.imread(str(paths[0]), cv2.IMREAD_GRAYSCALE))
+        for path in paths[1:]:
+            cur = peer.prepare(cv2.imread(str(path), cv2.IMREAD_GRAYSCALE))
+            H = peer.homography(prev, cur)
+            est = motion_from_homography(H, K, plane) if H is not None else None
+            failed.append(est is None)
+            motion = est if est is not None else (motions[-1] if motions else np.eye(4))
+            motions.append(motion)
+            poses.append(poses[-1] @ motion)
+            plane = plane.in_frame(se3_inv(motion))  # into the current camera
+            prev = cur
     errs = np.array([np.full(6, np.nan) if f else motion_errors(m, g)
                      for m, g, f in zip(motions, gt, failed)])
-    return MethodResult(peer.name, errs, secs, len(paths), final_drift(np.array(poses), gt_traj))
+    return MethodResult(peer.name, errs, watch.wall, watch.cpu, len(paths),
+                        final_drift(np.array(poses), gt_traj))
 
 
 def monovo_on_drive(seq: Path, out: Path) -> MethodResult:
-    t0 = time.perf_counter()
-    track_sequence(seq, None, out, TrackOptions())
-    secs = time.perf_counter() - t0
+    with Stopwatch() as watch:
+        track_sequence(seq, None, out, TrackOptions())
     _, est, _ = read_motion_csv(out / "motion.csv")
     _, gt, _ = read_motion_csv(seq / "groundtruth_motion.csv")
     _, traj = read_tum(out / "trajectory.tum")
     _, gt_traj = read_tum(seq / "groundtruth.tum")
     errs = np.array([motion_errors(e, g) for e, g in zip(est, gt)])
-    return MethodResult("monovo", errs, secs, len(traj), final_drift(traj, gt_traj))
+    return MethodResult("monovo", errs, watch.wall, watch.cpu, len(traj), final_drift(traj, gt_traj))
 
 
 # --------------------------------------------------------------------------- tables
@@ -255,7 +253,7 @@ def results_table(results: list[MethodResult], *, unit: str, drive: bool) -> str
         f"any axis ≥ {CONVERGED:g} |"
     if drive:
         head += " final position error (% of distance) | final heading error (deg) |"
-    head += f" ms/{unit} | {unit}s/s |"
+    head += f" ms/{unit} wall (CPU) | {unit}s/s wall (CPU) |"
     lines = [head, "|" + " --- |" * (head.count("|") - 1)]
     for r in results:
         m = r.mean_abs
@@ -264,14 +262,15 @@ def results_table(results: list[MethodResult], *, unit: str, drive: bool) -> str
         if drive:
             err, dist, heading = r.drift
             cells += [f"{100 * err / dist:.3f}", f"{heading:.3f}"]
-        cells += [f"{1000 * r.seconds / r.count:.1f}", f"{r.count / r.seconds:.1f}"]
+        cells += [f"{1000 * r.seconds / r.count:.1f} ({1000 * r.cpu / r.count:.1f})",
+                  f"{r.count / r.seconds:.1f} ({r.count / r.cpu:.1f})"]
         lines.append(f"| {r.name} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
 def ratio_table(pairs: list[MethodResult] | None, drive: list[MethodResult] | None) -> str:
     """monovo's mean abs error / the better peer's, per axis; monovo speed / ECC speed."""
-    lines = ["| | " + " | ".join(AXES) + " | transl. avg | rot. avg | monovo speed / ECC speed |",
+    lines = ["| | " + " | ".join(AXES) + " | transl. avg | rot. avg | monovo speed / ECC speed, wall (CPU) |",
              "|" + " --- |" * (len(AXES) + 4)]
     for label, res in (("pairs", pairs), ("drive", drive)):
         if res is None:
@@ -283,9 +282,10 @@ def ratio_table(pairs: list[MethodResult] | None, drive: list[MethodResult] | No
         best_r = min(p.mean_abs[3:].mean() for p in peers)
         ecc = next(p for p in peers if p.name == EccPeer.name)
         speed = (mono.count / mono.seconds) / (ecc.count / ecc.seconds)
+        speed_cpu = (mono.count / mono.cpu) / (ecc.count / ecc.cpu)
         cells = [f"{v:.3f}" for v in ratio] + [f"{mono.mean_abs[:3].mean() / best_t:.3f}",
                                                f"{mono.mean_abs[3:].mean() / best_r:.3f}",
-                                               f"{speed:.2f}"]
+                                               f"{speed:.2f} ({speed_cpu:.2f})"]
         lines.append(f"| {label}: monovo / better peer | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
@@ -326,7 +326,7 @@ def main() -> None:
     args = ap.parse_args()
     one_core()
     cv2.setRNGSeed(0)  # RANSAC draws
-    print(f"Machine: {machine()}\n")
+    print(f"Machine: {machine()}; {load()} at the start\n")
     check()
     if args.check:
         return
@@ -334,10 +334,10 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         if args.pairs:
             root = Path(tmp) / "pairs"
-            errs, _, secs = run_pairs(root, args.pairs, args.pair_noise_var, args.pair_seed,
-                                      TrackOptions())
+            errs, _, secs, cpu = run_pairs(root, args.pairs, args.pair_noise_var, args.pair_seed,
+                                           TrackOptions())
             pairs = sorted(p for p in root.iterdir() if p.name.startswith("pair_"))
-            pair_res = [MethodResult("monovo", errs, float(secs.sum()), len(pairs))]
+            pair_res = [MethodResult("monovo", errs, float(secs.sum()), float(cpu.sum()), len(pairs))]
             pair_res += [peer_on_pairs(p, pairs) for p in (OrbPeer(), EccPeer())]
             print(f"### {args.pairs} pairs of the paper protocol (688x544, noise variance "
                   f"{args.pair_noise_var:g}, seed {args.pair_seed}), mean absolute error\n")
@@ -360,6 +360,8 @@ def main() -> None:
             print(results_table(drive_res, unit="frame", drive=True) + "\n")
     print("### Ratios\n")
     print(ratio_table(pair_res, drive_res))
+    print(f"\n({load()} at the end. Wall times count other processes' load on a shared "
+          "machine; CPU times are this process's own, one thread.)")
 
 
 if __name__ == "__main__":

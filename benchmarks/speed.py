@@ -42,7 +42,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from benchmarks.common import final_drift, machine, one_core
+from benchmarks.common import Stopwatch, final_drift, load, machine, one_core
 from benchmarks.peers import EccPeer, peer_on_drive
 from monovo_cli.config import load_init
 from monovo_cli.frames import FrameSequence
@@ -75,27 +75,26 @@ STAGE_ORDER = ("decode", "pyramid", "warp+sample", "normal equations", "robust w
 def end_to_end(seq: Path, out: Path) -> dict:
     """``runner.track_sequence`` timed as a whole and per frame (first to last frame done)."""
     stamps: list[float] = []
-    t0 = time.perf_counter()
-    s = track_sequence(seq, None, out, TrackOptions(), overwrite=True,
-                       progress=lambda done, total: stamps.append(time.perf_counter()))
-    wall = time.perf_counter() - t0
+    with Stopwatch() as watch:
+        s = track_sequence(seq, None, out, TrackOptions(), overwrite=True,
+                           progress=lambda done, total: stamps.append(time.perf_counter()))
     _, est = read_tum(out / "trajectory.tum")
     _, gt = read_tum(seq / "groundtruth.tum")
     err, dist, _ = final_drift(est, gt)
-    return {"frames": s.frames, "wall": wall, "fps": s.frames / wall,
+    return {"frames": s.frames, "fps": s.frames / watch.wall, "fps_cpu": s.frames / watch.cpu,
             "fps_steady": (len(stamps) - 1) / (stamps[-1] - stamps[0]),
             "lost": s.lost, "reanchored": s.reanchored, "drift_pct": 100 * err / dist}
 
 
-def estimator_only(seq: Path) -> float:
-    """Frames/s of ``odometry.track`` over frames decoded beforehand."""
+def estimator_only(seq: Path) -> tuple[float, float]:
+    """Frames/s (wall, CPU) of ``odometry.track`` over frames decoded beforehand."""
     frames = FrameSequence(seq)
     cfg = load_init(seq / "init.yaml")
     imgs = [(f.index, f.timestamp, f.image) for f in frames]
     plane = Plane(cfg.ground.normal_array(), float(cfg.ground.distance))
-    t0 = time.perf_counter()
-    n = sum(1 for _ in track(imgs, cfg.camera, plane, cfg.ground.region, TrackOptions()))
-    return n / (time.perf_counter() - t0)
+    with Stopwatch() as watch:
+        n = sum(1 for _ in track(imgs, cfg.camera, plane, cfg.ground.region, TrackOptions()))
+    return n / watch.wall, n / watch.cpu
 
 
 # --------------------------------------------------------------------------- profile
@@ -218,7 +217,7 @@ def main() -> None:
     ap.add_argument("--memory-frames", type=int, nargs="+", default=[500, 5000])
     args = ap.parse_args()
     one_core()
-    print(f"Machine: {machine()}\n")
+    print(f"Machine: {machine()}; {load()} at the start\n")
     speed_rows, stage_cols = [], []
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)
@@ -230,8 +229,7 @@ def main() -> None:
             e2e = end_to_end(seq, tmp / f"out_{size}")
             est_fps = estimator_only(seq)
             ecc = peer_on_drive(EccPeer(), seq)
-            ecc_fps = ecc.count / ecc.seconds
-            speed_rows.append((size, e2e, est_fps, ecc_fps))
+            speed_rows.append((size, e2e, est_fps, (ecc.count / ecc.seconds, ecc.count / ecc.cpu)))
             if not args.no_profile:
                 shares, top = profile_stages(seq, tmp / f"out_{size}")
                 stage_cols.append((size, shares, top, 1000.0 / e2e["fps"]))
@@ -239,16 +237,19 @@ def main() -> None:
         mem_rows = memory(tmp, args.memory_frames, args.seed) if args.memory else None
 
     print(f"### Frames/s on one core ({args.frames}-frame drives, noise variance 10, seed "
-          f"{args.seed})\n")
-    print("| size | end to end, whole call (frames/s) | end to end, per frame (frames/s) | "
-          "estimator only (frames/s) | ms/frame end to end | target end to end | ECC peer, "
-          "end to end (frames/s) | monovo / ECC | lost | re-anchored | final error (% of distance) |")
+          f"{args.seed}); wall clock, CPU time of this process in brackets\n")
+    print("| size | end to end, whole call | end to end, per frame (wall) | estimator only | "
+          "ms/frame end to end | target end to end | ECC peer, end to end | monovo / ECC | lost | "
+          "re-anchored | final error (% of distance) |")
     print("|" + " --- |" * 11)
-    for size, e, est_fps, ecc_fps in speed_rows:
+    for size, e, (est, est_cpu), (ecc, ecc_cpu) in speed_rows:
         target = f"≥ {TARGET_FPS[size]:g}" if size in TARGET_FPS else "–"
-        print(f"| {size} | {e['fps']:.1f} | {e['fps_steady']:.1f} | {est_fps:.1f} | "
-              f"{1000 / e['fps']:.1f} | {target} | {ecc_fps:.1f} | {e['fps'] / ecc_fps:.2f} | "
-              f"{e['lost']} | {e['reanchored']} | {e['drift_pct']:.3f} |")
+        print(f"| {size} | {e['fps']:.1f} ({e['fps_cpu']:.1f}) | {e['fps_steady']:.1f} | "
+              f"{est:.1f} ({est_cpu:.1f}) | {1000 / e['fps']:.1f} ({1000 / e['fps_cpu']:.1f}) | "
+              f"{target} | {ecc:.1f} ({ecc_cpu:.1f}) | {e['fps'] / ecc:.2f} "
+              f"({e['fps_cpu'] / ecc_cpu:.2f}) | {e['lost']} | {e['reanchored']} | "
+              f"{e['drift_pct']:.3f} |")
+    print(f"\n({load()} at the end.)")
     if stage_cols:
         print("\n### Time per frame by stage (cProfile of the end-to-end run; % of the profiled "
               "time, and ms/frame = share × unprofiled end-to-end time)\n")
