@@ -497,7 +497,8 @@ def check_frame_size(cfg: InitConfig, width: int, height: int, frame_path: Path)
     cam = cfg.camera
     if (cam.width, cam.height) != (int(width), int(height)):
         raise ConfigError(f"{cfg.path}: camera is {cam.width}x{cam.height} but frames are "
-                          f"{int(width)}x{int(height)} ({frame_path})")
+                          f"{int(width)}x{int(height)} ({frame_path}); use the init.yaml of the "
+                          "camera that took them")
 
 
 def _yaml_float(x: float) -> str:

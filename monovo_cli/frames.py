@@ -62,7 +62,10 @@ def _list_images(directory: Path) -> list[Path]:
         entries = list(directory.iterdir())
     except OSError as exc:
         raise InputError(f"{directory}: cannot list the directory ({exc.strerror or exc})") from None
-    files = [p for p in entries if _is_image_name(p.name) and p.is_file()]
+    # A dangling symlink named like a frame is a frame that cannot be read, not a
+    # non-frame: skipping it silently would shift every later frame's timestamp.
+    files = [p for p in entries if _is_image_name(p.name)
+             and (p.is_file() or (p.is_symlink() and not p.exists()))]
     return sorted(files, key=lambda p: natural_key(p.name))
 
 

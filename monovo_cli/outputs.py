@@ -12,6 +12,7 @@ import io
 import math
 import os
 import tempfile
+import zipfile
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -250,8 +251,6 @@ def load_model(path: Path):
     from monovo_cli.geometry import PinholeCamera
     from monovo_cli.ground import LevelPoints, Plane
     from monovo_cli.odometry import Keyframe
-
-    import zipfile
 
     path = Path(path)
     not_model = f"{path}: not a monovo model (write one with 'monovo init')"

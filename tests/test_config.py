@@ -562,7 +562,8 @@ def test_check_frame_size(tmp_path):
     with pytest.raises(ConfigError) as ei:
         check_frame_size(cfg, 512, 512, Path("frames/frame_000000.png"))
     assert str(ei.value) == (f"{cfg.path}: camera is 688x544 but frames are 512x512 "
-                             "(frames/frame_000000.png)")
+                             "(frames/frame_000000.png); use the init.yaml of the camera that "
+                             "took them")
 
 
 # ----------------------------------------------------------------------------- properties
