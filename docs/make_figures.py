@@ -40,7 +40,7 @@ def main() -> None:
     args = ap.parse_args()
     IMG.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "out"
+        out = Path(tmp) / "navcam_drive"  # the plot title names the output directory
         monovo("track", str(SEQ), "-o", str(out), "--groundtruth", str(SEQ / "groundtruth.tum"))
         frames = Path(tmp) / "overlay"
         monovo("overlay", str(SEQ), "-t", str(out / "trajectory.csv"), "-o", str(frames) + "/",
