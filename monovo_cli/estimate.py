@@ -98,13 +98,42 @@ def distortion_jacobian(camera, X: np.ndarray, eps: float = 1e-6) -> np.ndarray:
     return J
 
 
-def sample_bilinear(image: np.ndarray, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+class QuadImage:
+    """A float32 image with each pixel's 2x2 neighbourhood packed into one 16-byte element.
+
+    Bilinear sampling then needs one gather per point instead of four.
+    """
+
+    __slots__ = ("image", "quad", "height", "width")
+
+    def __init__(self, image: np.ndarray) -> None:
+        img = np.ascontiguousarray(image, dtype=np.float32)
+        h, w = img.shape
+        p = np.empty((h + 1, w + 1), np.float32)
+        p[:h, :w] = img
+        p[h, :w] = img[-1]
+        p[:, w] = p[:, w - 1]
+        q = np.empty((h, w, 4), np.float32)
+        q[..., 0] = p[:-1, :-1]
+        q[..., 1] = p[:-1, 1:]
+        q[..., 2] = p[1:, :-1]
+        q[..., 3] = p[1:, 1:]
+        self.image = img
+        self.quad = q.reshape(h * w * 4).view(np.complex128)
+        self.height, self.width = h, w
+
+
+def sample_bilinear(image: np.ndarray | QuadImage, u: np.ndarray,
+                    v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Exact bilinear interpolation of ``image`` (H, W) float32 at pixels (u, v) (N,) float64.
 
     Returns the values (N,) float32 and a validity mask (N,) bool (inside [0, W-1] x [0, H-1]).
     The fractional offsets are kept to float32 precision (no 1/32 px quantisation).
     """
-    h, w = image.shape
+    if isinstance(image, QuadImage):
+        h, w = image.height, image.width
+    else:
+        h, w = image.shape
     valid = (u >= 0.0) & (v >= 0.0) & (u <= w - 1.0) & (v <= h - 1.0)
     u = np.where(valid, u, 0.0)
     v = np.where(valid, v, 0.0)
@@ -113,11 +142,15 @@ def sample_bilinear(image: np.ndarray, u: np.ndarray, v: np.ndarray) -> tuple[np
     ax = (u - x0).astype(np.float32)
     ay = (v - y0).astype(np.float32)
     idx = y0 * w + x0
-    flat = image.ravel()
-    p00 = flat.take(idx)
-    p01 = flat.take(idx + 1)
-    p10 = flat.take(idx + w)
-    p11 = flat.take(idx + (w + 1))
+    if isinstance(image, QuadImage):
+        q = image.quad.take(idx).view(np.float32).reshape(-1, 4)
+        p00, p01, p10, p11 = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    else:
+        flat = image.ravel()
+        p00 = flat.take(idx)
+        p01 = flat.take(idx + 1)
+        p10 = flat.take(idx + w)
+        p11 = flat.take(idx + (w + 1))
     top = p00 + ax * (p01 - p00)
     bot = p10 + ax * (p11 - p10)
     return top + ay * (bot - top), valid
@@ -149,8 +182,8 @@ def _rho_mean(r: np.ndarray, scale: float, opts: EstimatorOptions) -> float:
         return float("inf")
     a = np.abs(r) * np.float32(1.0 / scale)
     if opts.robust == "huber":
-        k = np.float32(opts.huber_k)
-        rho = np.where(a <= k, 0.5 * a * a, k * a - 0.5 * k * k)
+        m = np.minimum(a, np.float32(opts.huber_k))
+        rho = m * (a - 0.5 * m)  # 0.5 a^2 inside k, k a - 0.5 k^2 outside
     elif opts.robust == "tukey":
         c = opts.tukey_c
         q = np.clip(1.0 - (a / c) ** 2, 0.0, None)
@@ -255,16 +288,20 @@ def residuals(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float = 1
 
 def _probe_move(level: KeyLevel, T0: np.ndarray, T1: np.ndarray) -> float:
     """Largest image displacement (px) of the level's probe points between poses T0 and T1."""
-    P = level.probes
-    if len(P) == 0:
-        return 0.0
-    a = P @ T0[:3, :3].T + T0[:3, 3]
-    b = P @ T1[:3, :3].T + T1[:3, 3]
-    if np.any(a[:, 2] <= 1e-9) or np.any(b[:, 2] <= 1e-9):
-        return float("inf")
     cam = level.points.camera
-    d = cam.project(b) - cam.project(a)
-    return float(np.max(np.abs(d)))
+    fx, fy = cam.fx, cam.fy
+    worst = 0.0
+    for X in level.probes.tolist():
+        uv = []
+        for T in (T0, T1):
+            x = T[0, 0] * X[0] + T[0, 1] * X[1] + T[0, 2] * X[2] + T[0, 3]
+            y = T[1, 0] * X[0] + T[1, 1] * X[1] + T[1, 2] * X[2] + T[1, 3]
+            z = T[2, 0] * X[0] + T[2, 1] * X[1] + T[2, 2] * X[2] + T[2, 3]
+            if z <= 1e-9:
+                return float("inf")
+            uv.append((fx * x / z, fy * y / z))
+        worst = max(worst, abs(uv[1][0] - uv[0][0]), abs(uv[1][1] - uv[0][1]))
+    return worst
 
 
 @dataclass
@@ -352,6 +389,7 @@ def coarse_search(level: KeyLevel, image: np.ndarray, cur_from_key: np.ndarray, 
     this level; the one with the most inliers wins. Returns the winning ``cur_from_key``.
     """
     best, best_score = np.array(cur_from_key, dtype=np.float64), -1.0
+    image = image if isinstance(image, QuadImage) else QuadImage(image)
     for rz in roll_deg:
         for rx in angles_deg:
             for ry in angles_deg:
@@ -379,6 +417,7 @@ def estimate_motion(levels: Sequence[KeyLevel], pyramid: Sequence[np.ndarray],
     T = np.array(cur_from_key, dtype=np.float64)
     total = 0
     top = len(levels) - 1 if first_level is None else min(first_level, len(levels) - 1)
+    pyramid = [p if isinstance(p, QuadImage) else QuadImage(p) for p in pyramid[:top + 1]]
     res = None
     for lv in range(top, -1, -1):
         tol = opts.step_tolerance_px * (1.0 if lv == 0 else 10.0)

@@ -282,7 +282,7 @@ class Odometry:
         if reanchor and self.options.refine_plane and key.index != index:
             cur_from_key, plane_key, gain, bias = refine_plane_and_motion(
                 key.levels[0].points, pyr[0], cur_from_key, key.plane, self._prior,
-                gain=gain, bias=bias, options=self.options.estimator)
+                gain=gain, bias=bias, options=self.options.estimator, iterations=4)
             cur_from_key = orthonormalize(cur_from_key)
         world_from_cur = orthonormalize(key.world_from_key @ se3_inv(cur_from_key))
         prev_from_cur = orthonormalize(se3_inv(self._world_from_prev) @ world_from_cur)

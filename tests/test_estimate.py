@@ -53,3 +53,18 @@ def test_bilinear_sampler_flags_points_outside():
     v = np.array([5.0, 5.0, 39.0, 5.0, -1.0, 3.0])
     _, valid = sample_bilinear(img, u, v)
     assert valid.tolist() == [False, True, True, False, False, False]
+
+
+def test_packed_sampler_equals_plain_sampler():
+    from monovo_cli.estimate import QuadImage
+
+    rng = np.random.default_rng(5)
+    img = rng.uniform(0, 255, (37, 53)).astype(np.float32)
+    u = rng.uniform(-1, 54, 2000)
+    v = rng.uniform(-1, 38, 2000)
+    u[:5] = [0, 52, 52, 0, 26.5]
+    v[:5] = [0, 36, 0, 36, 36]
+    a, va = sample_bilinear(img, u, v)
+    b, vb = sample_bilinear(QuadImage(img), u, v)
+    assert np.array_equal(va, vb)
+    np.testing.assert_array_equal(a[va], b[vb])
