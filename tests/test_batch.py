@@ -1,0 +1,208 @@
+"""monovo batch: discovery, one sequence per worker, summary.csv, --resume, the Dask executor."""
+
+from __future__ import annotations
+
+import csv
+import os
+import shutil
+import sys
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from monovo_cli import batch
+from monovo_cli.batch import find_sequences, is_complete, run_batch, track_one
+from monovo_cli.cli import main
+from monovo_cli.synth import synthesize
+
+GOOD = ("a/s1", "a/s2", "b/deep/s3", "s4", "s10")
+BROKEN = "broken"
+COMPARED = ("motion.csv", "trajectory.csv", "trajectory.tum")
+
+
+@pytest.fixture(scope="module")
+def archive(tmp_path_factory) -> Path:
+    """Six small sequences in nested folders; ``broken`` has a corrupt init.yaml."""
+    root = tmp_path_factory.mktemp("batch") / "archive"
+    for seed, rel in enumerate(GOOD):
+        synthesize(root / rel, preset="drive", frames=8, size=(128, 128), seed=seed)
+    shutil.copytree(root / "s4", root / BROKEN)
+    (root / BROKEN / "init.yaml").write_text("camera: [\n")
+    (root / "notes").mkdir()  # neither frames/ nor init.yaml: not a sequence
+    (root / "notes" / "readme.txt").write_text("x")
+    return root
+
+
+def _summary(out: Path) -> dict[str, dict[str, str]]:
+    with open(out / "summary.csv", newline="") as f:
+        return {r["sequence"]: r for r in csv.DictReader(f)}
+
+
+@pytest.fixture(scope="module")
+def local_out(archive, tmp_path_factory) -> Path:
+    """The archive tracked by the CLI on the local process pool with 2 workers."""
+    out = tmp_path_factory.mktemp("local") / "out"
+    r = CliRunner().invoke(main, ["batch", str(archive), "-o", str(out), "--workers", "2", "-q"])
+    assert r.exit_code == 2, r.output  # bad input in one sequence, after finishing the rest
+    assert "1 of 6 sequence(s) failed, first broken" in r.output
+    return out
+
+
+def test_find_sequences_nested_in_natural_order(archive, tmp_path):
+    rels = [p.as_posix() for p in find_sequences(archive)]
+    assert rels == ["a/s1", "a/s2", "b/deep/s3", BROKEN, "s4", "s10"]
+    # an output root inside the archive is not searched
+    inside = archive / "b" / "out"
+    shutil.copytree(archive / "s4", inside / "copy")
+    try:
+        assert "b/out/copy" not in [p.as_posix() for p in find_sequences(archive, exclude=[inside])]
+        assert "b/out/copy" in [p.as_posix() for p in find_sequences(archive)]
+    finally:
+        shutil.rmtree(inside)
+    # the root itself may be a sequence
+    assert find_sequences(archive / "s4") == [Path(".")]
+
+
+def test_find_sequences_glob_and_errors(archive, tmp_path):
+    assert [p.as_posix() for p in find_sequences(archive, pattern="a/*")] == ["a/s1", "a/s2"]
+    assert [p.as_posix() for p in find_sequences(archive, pattern="**/s3")] == ["b/deep/s3"]
+    with pytest.raises(batch.InputError, match="no directory under .* matches --glob 'zz\\*'"):
+        find_sequences(archive, pattern="zz*")
+    with pytest.raises(batch.InputError, match="no sequence under"):
+        find_sequences(tmp_path)
+    with pytest.raises(batch.InputError, match="no such directory"):
+        find_sequences(tmp_path / "missing")
+
+
+def test_track_one_returns_the_error_of_a_bad_sequence(archive, tmp_path):
+    res = track_one(archive / BROKEN, tmp_path / "o")
+    assert res["status"] == "failed" and res["error_kind"] == "input"
+    assert "init.yaml: not valid YAML" in res["error"]
+    with pytest.raises(ValueError, match="unknown option"):
+        track_one(archive / "s4", tmp_path / "o", {"levles": 3})
+
+
+def test_local_batch_tracks_all_but_the_broken_one(archive, local_out):
+    rows = _summary(local_out)
+    assert list(rows) == ["a/s1", "a/s2", "b/deep/s3", BROKEN, "s4", "s10"]
+    assert list(next(iter(rows.values())))[:7] == ["sequence", "frames", "status", "frames_per_s",
+                                                    "mean_msd", "lost", "error"]
+    assert rows[BROKEN]["status"] == "failed"
+    assert "init.yaml: not valid YAML" in rows[BROKEN]["error"]
+    for rel in GOOD:
+        assert rows[rel]["status"] == "ok" and rows[rel]["frames"] == "8" and not rows[rel]["error"]
+        assert float(rows[rel]["frames_per_s"]) > 0 and rows[rel]["lost"] == "0"
+        motion = (local_out / rel / "motion.csv").read_text().splitlines()
+        assert len(motion) == 1 + 7
+        assert len((local_out / rel / "trajectory.csv").read_text().splitlines()) == 1 + 8
+        assert len((local_out / rel / "trajectory.tum").read_text().splitlines()) == 8
+        assert is_complete(archive / rel, local_out / rel) == (True, "complete")
+    assert not (local_out / BROKEN / "done.json").exists()
+
+
+def test_batch_outputs_are_those_of_monovo_track(archive, local_out, tmp_path):
+    r = CliRunner().invoke(main, ["track", str(archive / "a/s2"), "-o", str(tmp_path / "t"), "-q"])
+    assert r.exit_code == 0, r.output
+    for name in COMPARED:
+        assert (tmp_path / "t" / name).read_bytes() == (local_out / "a/s2" / name).read_bytes()
+
+
+def test_resume_redoes_only_the_incomplete(archive, local_out, tmp_path):
+    out = tmp_path / "out"
+    shutil.copytree(local_out, out)
+    r = CliRunner().invoke(main, ["batch", str(archive), "-o", str(out), "-q"])
+    assert r.exit_code == 2 and "already holds results of 5 of 6" in r.output
+    assert "--resume" in r.output
+    # an interrupted batch: one sequence lost its marker, one a file, one was cut short
+    (out / "a/s1" / "done.json").unlink()
+    (out / "b/deep/s3" / "trajectory.tum").unlink()
+    motion = out / "s10" / "motion.csv"
+    motion.write_text("".join(motion.read_text().splitlines(keepends=True)[:4]))
+    redo = {"a/s1", "b/deep/s3", "s10"}
+    for rel in GOOD:
+        assert is_complete(archive / rel, out / rel)[0] == (rel not in redo)
+    assert "trajectory.tum is missing" in is_complete(archive / "b/deep/s3", out / "b/deep/s3")[1]
+    assert "motion.csv changed" in is_complete(archive / "s10", out / "s10")[1]
+    before = {rel: (out / rel / "motion.csv").stat().st_mtime_ns for rel in GOOD}
+    r = CliRunner().invoke(main, ["batch", str(archive), "-o", str(out), "--resume", "-q",
+                                  "--workers", "2"])
+    assert r.exit_code == 2, r.output
+    rows = _summary(out)
+    assert {rel: rows[rel]["status"] for rel in GOOD} == {
+        rel: "ok" if rel in redo else "skipped" for rel in GOOD}
+    assert rows[BROKEN]["status"] == "failed"
+    for rel in GOOD:
+        assert ((out / rel / "motion.csv").stat().st_mtime_ns == before[rel]) == (rel not in redo)
+        assert is_complete(archive / rel, out / rel)[0]
+        for name in COMPARED:
+            assert (out / rel / name).read_bytes() == (local_out / rel / name).read_bytes()
+    # other tracking options: nothing is complete any more
+    assert is_complete(archive / "s4", out / "s4", {"robust": "tukey"}) == (
+        False, "tracked with other options")
+
+
+def test_dask_local_cluster_gives_identical_outputs(archive, local_out, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    out = tmp_path / "dask"
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        r = CliRunner().invoke(main, ["batch", str(archive), "-o", str(out), "-q",
+                                      "--scheduler", cluster.scheduler_address])
+    assert r.exit_code == 2, r.output
+    rows = _summary(out)
+    assert rows[BROKEN]["status"] == "failed" and "init.yaml" in rows[BROKEN]["error"]
+    for rel in GOOD:
+        assert rows[rel]["status"] == "ok"
+        for name in COMPARED:
+            assert (out / rel / name).read_bytes() == (local_out / rel / name).read_bytes(), (
+                f"{rel}/{name} differs between the Dask and the local executor")
+
+
+def test_dask_missing_is_a_clear_usage_error(archive, tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed -> ImportError
+    r = CliRunner().invoke(main, ["batch", str(archive), "-o", str(tmp_path / "o"), "--dask"])
+    assert r.exit_code == 2
+    assert "needs Dask, which is not installed; install it with pip install 'monovo[dask]'" in r.output
+    assert "Traceback" not in r.output and not (tmp_path / "o").exists()
+
+
+def _fake_track(seq_dir, out_dir, options, *, overwrite=False):
+    """A stand-in for track_one in the pool test: dies in 's2', reports its thread limits."""
+    if Path(seq_dir).name == "s2":
+        os._exit(3)  # the worker process dies, as under the OOM killer
+    import cv2
+
+    return {"sequence": str(seq_dir), "status": "ok", "frames": 1, "error": "",
+            "threads": (os.environ.get("OMP_NUM_THREADS"), cv2.getNumThreads())}
+
+
+def test_a_dying_worker_fails_only_its_sequence(archive, tmp_path):
+    s = run_batch(archive, tmp_path / "o", workers=2, task=_fake_track, pattern="*/s*")
+    status = {r["sequence"]: r["status"] for r in s.results}
+    assert status == {"a/s1": "ok", "a/s2": "failed"}
+    (bad,) = s.internal_errors
+    assert "worker process died" in bad["error"]
+    assert s.results[0]["threads"] == ("1", 1)  # single-threaded workers
+    assert _summary(tmp_path / "o")["a/s2"]["status"] == "failed"
+
+
+def test_internal_errors_exit_1(archive, tmp_path, monkeypatch):
+    def fake(root, out, options, **kw):
+        res = {"sequence": "x", "status": "failed", "error": "internal error: boom",
+               "error_kind": "internal"}
+        return batch.BatchSummary([res], 0.1, Path(out) / "summary.csv", "local", 1)
+
+    monkeypatch.setattr(batch, "run_batch", fake)
+    r = CliRunner().invoke(main, ["batch", str(archive), "-o", str(tmp_path / "o"), "-q"])
+    assert r.exit_code == 1 and "1 of 1 sequence(s) failed, first x: internal error: boom" in r.output
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--resume", "--overwrite"], "--resume and --overwrite exclude each other"),
+    (["--covariance", "/abs/cov.csv"], "expected a path relative to each sequence"),
+    (["--workers", "0"], "--workers"),
+])
+def test_batch_usage_errors(archive, tmp_path, args, message):
+    r = CliRunner().invoke(main, ["batch", str(archive), "-o", str(tmp_path / "o"), *args])
+    assert r.exit_code == 2 and message in r.output, r.output
