@@ -12,7 +12,6 @@ import io
 import math
 import os
 import tempfile
-import zipfile
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,6 +26,8 @@ MOTION_COLUMNS = ("frame", "tx", "ty", "tz", "rx", "ry", "rz", "msd", "iteration
                   "status")
 STD_COLUMNS = ("std_tx", "std_ty", "std_tz", "std_rx", "std_ry", "std_rz")
 TRAJECTORY_COLUMNS = ("frame", "timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw")
+MAX_FRAME = 2**53  # frame numbers beyond this are not exact in a float (and overflow int64 soon)
+MAX_ROTVEC_DEG = 1e6  # larger rotation-vector components are garbage (and overflow so3_exp)
 
 
 def fmt(x: float) -> str:
@@ -157,6 +158,16 @@ def _floats(fields: Sequence[str], path: Path, lineno: int) -> list[float]:
     return vals
 
 
+def _quat_rotation(q: Sequence[float], path: Path, lineno: int) -> np.ndarray:
+    """Rotation matrix of a quaternion read from ``path``, scaled first so that huge
+    components cannot overflow the norm (1e200 0 0 1 is a half turn, not the identity)."""
+    q = np.asarray(q, dtype=float)
+    scale = float(np.max(np.abs(q)))
+    if scale == 0.0 or float(np.linalg.norm(q / scale)) * scale < 1e-6:
+        raise InputError(f"{path}: line {lineno}: zero quaternion")
+    return matrix_from_quat(q / scale)
+
+
 def read_tum(path: Path) -> tuple[np.ndarray, np.ndarray]:
     """Read a TUM file: timestamps (N,) and ``world_from_cam`` poses (N, 4, 4)."""
     path = Path(path)
@@ -174,11 +185,9 @@ def read_tum(path: Path) -> tuple[np.ndarray, np.ndarray]:
             raise InputError(f"{path}: line {i}: expected 8 numbers "
                              f"(timestamp tx ty tz qx qy qz qw), got {len(f)}")
         v = _floats(f, path, i)
-        q = np.array(v[4:8])
-        if np.linalg.norm(q) < 1e-6:
-            raise InputError(f"{path}: line {i}: zero quaternion")
+        R = _quat_rotation(v[4:8], path, i)
         ts.append(v[0])
-        poses.append(make_pose(matrix_from_quat(q), np.array(v[1:4])))
+        poses.append(make_pose(R, np.array(v[1:4])))
     if not ts:
         raise InputError(f"{path}: no poses in TUM file")
     return np.array(ts), np.array(poses)
@@ -202,8 +211,11 @@ def read_motion_csv(path: Path) -> tuple[np.ndarray, np.ndarray, list[str]]:
         if len(r) < 7:
             raise InputError(f"{path}: line {i}: expected at least 7 fields, got {len(r)}")
         v = _floats(r[:7], path, i)
-        if v[0] != int(v[0]):
-            raise InputError(f"{path}: line {i}: frame must be a whole number, got {r[0]!r}")
+        if v[0] != int(v[0]) or not 0 <= v[0] <= MAX_FRAME:
+            raise InputError(f"{path}: line {i}: frame must be a whole number >= 0, got {r[0]!r}")
+        if max(abs(x) for x in v[4:7]) > MAX_ROTVEC_DEG:
+            raise InputError(f"{path}: line {i}: rotation vector ({', '.join(r[4:7])}) is not "
+                             "axis times angle in degrees (components beyond 1e6)")
         frames.append(int(v[0]))
         poses.append(make_pose(so3_exp(np.radians(v[4:7])), np.array(v[1:4])))
         statuses.append(r[10].strip() if len(r) > 10 else "ok")
@@ -267,7 +279,8 @@ def load_model(path: Path):
         raise
     except OSError as exc:
         raise InputError(f"{path}: cannot read model ({exc.strerror or exc})") from None
-    except (ValueError, KeyError, EOFError, zipfile.BadZipFile):
+    except Exception:  # noqa: BLE001 - numpy's npy/zip readers raise ValueError, BadZipFile,
+        # zlib.error, EOFError, even SyntaxError/TokenError on a damaged header: all mean the same
         raise InputError(damaged) from None
     try:
         c = d["camera"]
@@ -306,14 +319,12 @@ def read_trajectory_csv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]
         if len(r) < 9:
             raise InputError(f"{path}: line {i}: expected at least 9 fields, got {len(r)}")
         v = _floats(r[:9], path, i)
-        if v[0] != int(v[0]) or v[0] < 0:
+        if v[0] != int(v[0]) or not 0 <= v[0] <= MAX_FRAME:
             raise InputError(f"{path}: line {i}: frame must be a whole number >= 0, got {r[0]!r}")
-        q = np.array(v[5:9])
-        if np.linalg.norm(q) < 1e-6:
-            raise InputError(f"{path}: line {i}: zero quaternion")
+        R = _quat_rotation(v[5:9], path, i)
         frames.append(int(v[0]))
         ts.append(v[1])
-        poses.append(make_pose(matrix_from_quat(q), np.array(v[2:5])))
+        poses.append(make_pose(R, np.array(v[2:5])))
     if not frames:
         raise InputError(f"{path}: no poses in trajectory CSV")
     if len(set(frames)) != len(frames):
@@ -339,7 +350,7 @@ def read_motion_stats(path: Path) -> dict[int, tuple[str, float]]:
         if len(r) < 11:
             raise InputError(f"{path}: line {i}: expected at least 11 fields, got {len(r)}")
         frame, msd = _floats([r[0], r[7]], path, i)
-        if frame != int(frame):
-            raise InputError(f"{path}: line {i}: frame must be a whole number, got {r[0]!r}")
+        if frame != int(frame) or not 0 <= frame <= MAX_FRAME:
+            raise InputError(f"{path}: line {i}: frame must be a whole number >= 0, got {r[0]!r}")
         out[int(frame)] = (r[10].strip(), msd)
     return out

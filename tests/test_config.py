@@ -621,7 +621,7 @@ def _mutated_config(draw):
     return d
 
 
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=500, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.one_of(_mutated_config(), _values))
 def test_property_load_init_structured(tmp_path_factory, data):
     p = tmp_path_factory.mktemp("prop") / "init.yaml"
@@ -639,7 +639,7 @@ def test_property_load_init_structured(tmp_path_factory, data):
     _assert_valid(cfg)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=500, deadline=None)
 @given(text=st.one_of(
     st.text(max_size=200),
     st.lists(st.sampled_from(SPEC_EXAMPLE.splitlines(keepends=True) + [

@@ -397,7 +397,7 @@ def _check_read(path: Path, data: bytes) -> None:
     assert img.size > 0 and np.all(np.isfinite(img))
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=500, deadline=None)
 @given(data=st.one_of(
     st.binary(max_size=512),
     st.binary(max_size=256).map(lambda b: b"\x89PNG\r\n\x1a\n" + b),
@@ -410,7 +410,7 @@ def test_property_read_gray_random_bytes(tmp_path_factory, data):
     _check_read(tmp_path_factory.mktemp("rb") / "f.png", data)
 
 
-@settings(max_examples=300, deadline=None)
+@settings(max_examples=500, deadline=None)
 @given(data=_damaged_image())
 def test_property_read_gray_damaged_images(tmp_path_factory, data):
     _check_read(tmp_path_factory.mktemp("dm") / "f.png", data)
