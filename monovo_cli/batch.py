@@ -693,12 +693,14 @@ def run_batch(root: str | Path, out_root: str | Path, options: dict[str, Any] | 
     if progress is not None:
         progress(total_done[0], total)
     executor = "dask" if use_dask else "local"
+    # Every task may replace what is in its folder: results from before this batch were
+    # refused above unless resume/overwrite allowed them, so anything there now is from an
+    # earlier attempt in this batch (a lost worker's task, rescheduled), to be redone.
     try:
         if jobs and use_dask:
-            _run_dask(jobs, scheduler, workers, task, opts, resume or overwrite, on_result, retries,
-                      log_level)
+            _run_dask(jobs, scheduler, workers, task, opts, True, on_result, retries, log_level)
         elif jobs:
-            _run_pool(jobs, workers, task, opts, resume or overwrite, on_result, log_level)
+            _run_pool(jobs, workers, task, opts, True, on_result, log_level)
     finally:
         write_summary(summary_path, results)
     return BatchSummary(results, time.perf_counter() - t0, summary_path, executor,

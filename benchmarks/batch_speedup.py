@@ -1,0 +1,122 @@
+"""monovo batch: wall time of 1 vs 2 local workers, and Dask-vs-local byte identity.
+
+    python -m benchmarks.batch_speedup --sequences 8 --frames 200 --size 256x256 --repeats 2
+
+Synthesizes ``--sequences`` drives once (``monovo synth --preset drive``, different seeds),
+then tracks the archive with ``monovo batch``'s library call (:func:`run_batch`) on the
+local process pool with 1 and with 2 workers, interleaved ``--repeats`` times so both see
+the same load, then once on a Dask LocalCluster of 2 single-threaded worker processes.
+Wall times include starting the pool or cluster. Prints a markdown table: wall time, the
+ratio of 2 workers to the 1-worker run next to it (acceptance: <= 0.6 on 2 cores), the
+workers' CPU time and the load average before each run; then whether every sequence's
+motion.csv, trajectory.csv, trajectory.tum (and trajectory.png) are byte-identical between
+the executors.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import resource
+import shutil
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+from benchmarks.common import machine
+from monovo_cli.batch import run_batch
+from monovo_cli.synth import synthesize
+
+COMPARED = ("motion.csv", "trajectory.csv", "trajectory.tum", "trajectory.png")
+
+
+def _synth(args: tuple[Path, int, tuple[int, int], int]) -> None:
+    out, frames, size, seed = args
+    synthesize(out, preset="drive", frames=frames, size=size, seed=seed)
+
+
+def make_archive(root: Path, sequences: int, frames: int, size: tuple[int, int]) -> None:
+    """``sequences`` drives of ``frames`` frames in ``root/drive_NN`` (seeds 0, 1, ...)."""
+    jobs = [(root / f"drive_{i:02d}", frames, size, i) for i in range(sequences)
+            if not (root / f"drive_{i:02d}" / "groundtruth.tum").is_file()]
+    with ProcessPoolExecutor(max_workers=os.cpu_count()) as ex:
+        list(ex.map(_synth, jobs))
+
+
+def _children_cpu() -> float:
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
+def timed_batch(root: Path, out: Path, **kw) -> tuple[float, float, str]:
+    """(wall s, CPU s of the finished worker processes, load before) of one batch into ``out``."""
+    shutil.rmtree(out, ignore_errors=True)
+    load = f"{os.getloadavg()[0]:.1f}"
+    cpu0, t0 = _children_cpu(), time.perf_counter()
+    s = run_batch(root, out, **kw)
+    wall, cpu = time.perf_counter() - t0, _children_cpu() - cpu0
+    bad = [r["sequence"] for r in s.results if r["status"] != "ok"]
+    if bad:
+        raise SystemExit(f"sequences failed: {bad}")
+    return wall, cpu, load
+
+
+def identical(a: Path, b: Path, names: list[str]) -> list[str]:
+    """The ``seq/file`` paths whose bytes differ between output roots ``a`` and ``b``."""
+    return [f"{n}/{f}" for n in names for f in COMPARED
+            if (a / n / f).read_bytes() != (b / n / f).read_bytes()]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--sequences", type=int, default=8)
+    ap.add_argument("--frames", type=int, default=200)
+    ap.add_argument("--size", default="256x256")
+    ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--no-dask", action="store_true", help="Skip the Dask LocalCluster run.")
+    ap.add_argument("--keep", type=Path, default=None,
+                    help="Keep the synthesized archive here (reused when it is there).")
+    args = ap.parse_args()
+    w, h = (int(v) for v in args.size.split("x"))
+    print(f"machine: {machine()}\n")
+    tmp = Path(tempfile.mkdtemp(prefix="monovo-batch-bench-"))
+    root = args.keep or tmp / "archive"
+    try:
+        t0 = time.perf_counter()
+        make_archive(root, args.sequences, args.frames, (w, h))
+        print(f"archive: {args.sequences} drives of {args.frames} frames, {w}x{h}, in {root} "
+              f"(synthesized in {time.perf_counter() - t0:.0f} s)\n")
+        names = [f"drive_{i:02d}" for i in range(args.sequences)]
+        rows = []
+        for r in range(1, args.repeats + 1):
+            one = timed_batch(root, tmp / "local1", workers=1)
+            two = timed_batch(root, tmp / "local2", workers=2)
+            rows.append((r, "local", 1, *one, None))
+            rows.append((r, "local", 2, *two, two[0] / one[0]))
+        diffs = {"local 1 vs 2 workers": identical(tmp / "local1", tmp / "local2", names)}
+        if not args.no_dask:
+            dask = timed_batch(root, tmp / "dask2", workers=2, dask=True)
+            # a LocalCluster's workers are not this process's children: no CPU figure
+            rows.append((args.repeats, "dask LocalCluster", 2, dask[0], None, dask[2],
+                         dask[0] / rows[-2][3]))
+            diffs["dask vs local"] = identical(tmp / "local2", tmp / "dask2", names)
+        print("| run | executor | workers | wall (s) | ratio to 1 worker | worker CPU (s) | "
+              "load before |")
+        print("| --- | --- | --- | --- | --- | --- | --- |")
+        for run, ex, n, wall, cpu, load, ratio in rows:
+            print(f"| {run} | {ex} | {n} | {wall:.1f} | "
+                  f"{'' if ratio is None else f'{ratio:.2f}'} | "
+                  f"{'' if cpu is None else f'{cpu:.1f}'} | {load} |")
+        print()
+        files = len(names) * len(COMPARED)
+        for what, bad in diffs.items():
+            print(f"{what}: {files - len(bad)}/{files} files byte-identical "
+                  f"({', '.join(COMPARED)})" + (f"; differ: {', '.join(bad)}" if bad else ""))
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
