@@ -459,11 +459,18 @@ def _run_pool(jobs: list[_Job], workers: int, task: Callable[..., dict], options
         broken = False
         try:
             while (source or running) and not broken:
-                while source and len(running) < width:
+                while source and len(running) < width and not broken:
                     job = source.popleft()
-                    fut = executor.submit(_pool_task, task, str(job.seq_dir), str(job.out_dir),
-                                          options, overwrite)
-                    running[fut] = job
+                    try:
+                        fut = executor.submit(_pool_task, task, str(job.seq_dir),
+                                              str(job.out_dir), options, overwrite)
+                    except BrokenProcessPool:  # a worker died since the last wait
+                        source.appendleft(job)
+                        broken = True
+                    else:
+                        running[fut] = job
+                if not running:
+                    break
                 done, _ = wait(running, return_when=FIRST_COMPLETED)
                 for fut in done:
                     job = running.pop(fut)
@@ -487,8 +494,9 @@ def _run_pool(jobs: list[_Job], workers: int, task: Callable[..., dict], options
                     else:
                         suspects.append(job)
                 running.clear()
-                log.warning("a worker process died; rerunning %d sequence(s) one at a time to "
-                            "find the one that killed it", len(suspects))
+                if not isolate:
+                    log.warning("a worker process died; rerunning %d sequence(s) one at a time "
+                                "to find the one that killed it", len(suspects))
         except BaseException:
             _terminate(executor)
             raise
