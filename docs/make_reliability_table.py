@@ -75,6 +75,12 @@ case put its bad input; `tmp/seq` is a copy of `seq` with the damage described.
 
 OUTRO = """\
 
+One input of the issue's list is deliberately not an error: `monovo overlay` with a
+trajectory holding fewer poses than the sequence has frames (the trajectory of an
+interrupted run, typically) renders frames 0 up to its last pose and says so in a warning
+line naming the file; a trajectory that cannot belong to the sequence (a frame beyond its
+end, TUM timestamps matching no frame) is an error.
+
 ## A corrupt frame in the middle of a sequence
 
 By default the run stops at the first frame after frame 0 that cannot be read (zero

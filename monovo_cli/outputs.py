@@ -158,6 +158,11 @@ def _floats(fields: Sequence[str], path: Path, lineno: int) -> list[float]:
     return vals
 
 
+def _reason(exc: Exception) -> str:
+    """Why a file could not be read, without repeating its name (OSError.strerror)."""
+    return getattr(exc, "strerror", None) or str(exc)
+
+
 def _quat_rotation(q: Sequence[float], path: Path, lineno: int) -> np.ndarray:
     """Rotation matrix of a quaternion read from ``path``, scaled first so that huge
     components cannot overflow the norm (1e200 0 0 1 is a half turn, not the identity)."""
@@ -174,7 +179,7 @@ def read_tum(path: Path) -> tuple[np.ndarray, np.ndarray]:
     try:
         text = path.read_text()
     except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read TUM file ({exc})") from None
+        raise InputError(f"{path}: cannot read TUM file ({_reason(exc)})") from None
     ts, poses = [], []
     for i, line in enumerate(text.splitlines(), start=1):
         line = line.strip()
@@ -200,7 +205,7 @@ def read_motion_csv(path: Path) -> tuple[np.ndarray, np.ndarray, list[str]]:
         with open(path, newline="") as f:
             rows = list(csv.reader(f))
     except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read motion CSV ({exc})") from None
+        raise InputError(f"{path}: cannot read motion CSV ({_reason(exc)})") from None
     if not rows or [c.strip() for c in rows[0][:7]] != list(MOTION_COLUMNS[:7]):
         raise InputError(f"{path}: expected a header starting with "
                          f"{','.join(MOTION_COLUMNS[:7])}")
@@ -309,7 +314,7 @@ def read_trajectory_csv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]
         with open(path, newline="") as f:
             rows = list(csv.reader(f))
     except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read trajectory CSV ({exc})") from None
+        raise InputError(f"{path}: cannot read trajectory CSV ({_reason(exc)})") from None
     if not rows or [c.strip() for c in rows[0][:9]] != list(TRAJECTORY_COLUMNS):
         raise InputError(f"{path}: expected a header starting with {','.join(TRAJECTORY_COLUMNS)}")
     frames, ts, poses = [], [], []
@@ -340,7 +345,7 @@ def read_motion_stats(path: Path) -> dict[int, tuple[str, float]]:
         with open(path, newline="") as f:
             rows = list(csv.reader(f))
     except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read motion CSV ({exc})") from None
+        raise InputError(f"{path}: cannot read motion CSV ({_reason(exc)})") from None
     if not rows or [c.strip() for c in rows[0][:11]] != list(MOTION_COLUMNS):
         raise InputError(f"{path}: expected a header starting with {','.join(MOTION_COLUMNS)}")
     out: dict[int, tuple[str, float]] = {}

@@ -344,7 +344,7 @@ def _trajectory_by_frame(path: Path, frames: FrameSequence) -> dict[int, np.ndar
             hit = [j for j in (p - 1, p) if 0 <= j < len(frames)
                    and abs(frames.timestamps[j] - t) <= 1e-6]
             if not hit:
-                raise InputError(f"{path}: timestamp {t!r} matches no frame of {frames.dir} "
+                raise InputError(f"{path}: timestamp {float(t)!r} matches no frame of {frames.dir} "
                                  "(frame k has timestamp k, or its line in times.txt)")
             out[hit[0]] = T
         return out
@@ -381,6 +381,10 @@ def overlay_sequence(seq: Path, params: Path | None, trajectory: Path, out: str 
     tri = triangle_on_ground(cfg.camera, plane, triangle_px, region)
     renderer = OverlayRenderer(cfg.camera, plane, tri, region=region, points=points)
     last = max(poses)
+    if len(poses) < len(frames):  # e.g. an interrupted run: rendered, but said
+        log.warning("%s: poses for %d of the %d frames of %s; frames without one show no "
+                    "triangle and the video ends at frame %d", trajectory, len(poses),
+                    len(frames), frames.dir, last)
     sink = open_sink(out, fps=fps, overwrite=overwrite)
     try:
         for k in range(last + 1):

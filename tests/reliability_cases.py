@@ -241,6 +241,49 @@ def _model_other_size(tmp: Path, seq: Path) -> None:
     init_model(other, None, tmp / "model.npz", TrackOptions())
 
 
+def _tracked(tmp: Path, seq: Path) -> Path:
+    """Track ``seq`` into ``tmp/out`` (motion.csv, trajectory.csv, trajectory.tum)."""
+    from monovo_cli.odometry import TrackOptions
+    from monovo_cli.runner import track_sequence
+
+    out = tmp / "out"
+    if not (out / "trajectory.csv").exists():
+        track_sequence(seq, None, out, TrackOptions())
+    return out
+
+
+def _tracked_setup(tmp: Path, seq: Path) -> None:
+    _tracked(tmp, seq)
+
+
+def _trajectory(edit: Callable[[list[str]], list[str]], name: str = "trajectory.csv"):
+    """Track the sequence, then rewrite ``tmp/out/<name>``'s lines with ``edit``."""
+    def setup(tmp: Path, seq: Path) -> None:
+        path = _tracked(tmp, seq) / name
+        path.write_text("".join(ln + "\n" for ln in edit(path.read_text().splitlines())))
+    return setup
+
+
+def _tum_pair(edit: Callable[[list[str]], list[str]]):
+    """``tmp/est.tum``: the sequence's ground truth with ``edit`` applied to its lines."""
+    def setup(tmp: Path, seq: Path) -> None:
+        lines = (seq / "groundtruth.tum").read_text().splitlines()
+        (tmp / "est.tum").write_text("".join(ln + "\n" for ln in edit(lines)))
+    return setup
+
+
+def _shift_times(lines: list[str]) -> list[str]:
+    return [" ".join([str(float(ln.split()[0]) + 0.5), *ln.split()[1:]]) for ln in lines]
+
+
+def _set_field(row: int, col: int, value: str, sep: str = " "):
+    def edit(lines: list[str]) -> list[str]:
+        f = lines[row].split(sep)
+        f[col] = value
+        return [*lines[:row], sep.join(f), *lines[row + 1:]]
+    return edit
+
+
 # ----------------------------------------------------------------------------- the cases
 
 T = ("track",)
@@ -248,6 +291,8 @@ OUT = ("-o", "{tmp}/out")
 P = ("-p", "{init}")
 TRACK_COPY = (*T, "{copy}", *OUT)
 TRACK_INIT = (*T, "{seq}", *P, *OUT)
+OV = ("overlay", "{seq}")
+OV_T = ("-t", "{tmp}/out/trajectory.csv")
 
 
 def _c(id, group, what, args, status, words, setup=None, **kw) -> Case:  # noqa: A002
@@ -459,6 +504,68 @@ CASES: list[Case] = [
        ("--size", "WxH")),
     _c("synth-out-not-empty", "usage", "synth into a non-empty directory",
        ("synth", "{tmp}/s"), 2, ("already exists", "--overwrite"), _write("s/x.txt", "x")),
+    # --- overlay -------------------------------------------------------------------------
+    _c("overlay-traj-missing", "overlay", "-t names a file that does not exist",
+       (*OV, "-t", "{tmp}/none.csv", "-o", "{tmp}/ov.mp4"), 2, ("none.csv", "no such file"),
+       needs=("overlay",)),
+    _c("overlay-traj-fewer-rows", "overlay", "a trajectory with fewer rows than frames",
+       (*OV, *OV_T, "-o", "{tmp}/ov.mp4"), 0,
+       ("trajectory.csv", "poses for 3 of the 6 frames", "no triangle", "frame 2"),
+       _trajectory(lambda ls: ls[:4]), needs=("overlay",),
+       note="rendered up to its last pose with a warning, not an error: the trajectory of an "
+            "interrupted run is worth seeing; a trajectory that does not fit the sequence "
+            "is an error (next rows)"),
+    _c("overlay-traj-other-seq", "overlay", "a trajectory of another, longer sequence",
+       (*OV, *OV_T, "-o", "{tmp}/ov.mp4"), 2, ("trajectory.csv", "frame 9", "6 frames"),
+       _trajectory(lambda ls: [*ls, *(f"{k}," + ls[-1].split(",", 1)[1] for k in (6, 7, 8, 9))]),
+       needs=("overlay",)),
+    _c("overlay-traj-tum-times", "overlay", "a TUM trajectory whose timestamps are not the frames'",
+       (*OV, "-t", "{tmp}/out/trajectory.tum", "-o", "{tmp}/ov.mp4"), 2,
+       ("trajectory.tum", "timestamp", "matches no frame"),
+       _trajectory(_shift_times, "trajectory.tum"), needs=("overlay",)),
+    _c("overlay-traj-is-motion", "overlay", "-t names motion.csv, not a trajectory",
+       (*OV, "-t", "{tmp}/out/motion.csv", "-o", "{tmp}/ov.mp4"), 2,
+       ("motion.csv", "header"), _tracked_setup,
+       needs=("overlay",)),
+    _c("overlay-traj-bad-row", "overlay", "a trajectory row with a non-number",
+       (*OV, *OV_T, "-o", "{tmp}/ov.mp4"), 2, ("trajectory.csv", "line 3", "expected numbers"),
+       _trajectory(_set_field(2, 3, "abc", ",")), needs=("overlay",)),
+    _c("overlay-bad-extension", "overlay", "an unknown output extension (.avi)",
+       (*OV, *OV_T, "-o", "{tmp}/ov.avi"), 2, ("ov.avi",), _tracked_setup, needs=("overlay",)),
+    _c("overlay-out-exists", "overlay", "the output exists (no --overwrite)",
+       (*OV, *OV_T, "-o", "{tmp}/ov.mp4"), 2, ("ov.mp4", "--overwrite"),
+       _all(_tracked_setup, _write("ov.mp4", "x")), needs=("overlay",)),
+    _c("overlay-bad-triangle", "overlay", "--triangle with 3 numbers",
+       (*OV, *OV_T, "-o", "{tmp}/ov.mp4", "--triangle", "1,2,3"), 2, ("--triangle", "6 numbers"),
+       _tracked_setup, needs=("overlay",)),
+    # --- eval ----------------------------------------------------------------------------
+    _c("eval-missing", "eval", "the estimate does not exist",
+       ("eval", "{tmp}/none.tum", "{seq}/groundtruth.tum"), 2, ("none.tum", "cannot read",
+                                                             "no such file"),
+       needs=("eval",)),
+    _c("eval-other-times", "eval", "files with different timestamps",
+       ("eval", "{tmp}/est.tum", "{seq}/groundtruth.tum"), 2, ("timestamps",),
+       _tum_pair(_shift_times), needs=("eval",)),
+    _c("eval-row-short", "eval", "a row of 7 numbers", ("eval", "{tmp}/est.tum", "{seq}/groundtruth.tum"),
+       2, ("est.tum", "line 3", "expected 8 numbers"),
+       _tum_pair(lambda ls: [*ls[:2], " ".join(ls[2].split()[:7]), *ls[3:]]), needs=("eval",)),
+    _c("eval-row-text", "eval", "a row with a non-number", ("eval", "{tmp}/est.tum", "{seq}/groundtruth.tum"),
+       2, ("est.tum", "line 2", "expected numbers"), _tum_pair(_set_field(1, 2, "x")),
+       needs=("eval",)),
+    _c("eval-row-nan", "eval", "a row with nan", ("eval", "{tmp}/est.tum", "{seq}/groundtruth.tum"),
+       2, ("est.tum", "line 4", "non-finite"), _tum_pair(_set_field(3, 1, "nan")), needs=("eval",)),
+    _c("eval-zero-quaternion", "eval", "a row with a zero quaternion",
+       ("eval", "{tmp}/est.tum", "{seq}/groundtruth.tum"), 2, ("est.tum", "line 2", "zero quaternion"),
+       _tum_pair(lambda ls: [ls[0], " ".join(ls[1].split()[:4] + ["0"] * 4), *ls[2:]]),
+       needs=("eval",)),
+    _c("eval-empty", "eval", "an empty estimate", ("eval", "{tmp}/est.tum", "{seq}/groundtruth.tum"),
+       2, ("est.tum", "no poses"), _tum_pair(lambda ls: []), needs=("eval",)),
+    _c("eval-csv-given", "eval", "trajectory.csv given instead of the .tum",
+       ("eval", "{tmp}/out/trajectory.csv", "{seq}/groundtruth.tum"), 2, ("trajectory.csv",),
+       _tracked_setup, needs=("eval",)),
+    _c("eval-duplicate-time", "eval", "a timestamp given twice",
+       ("eval", "{tmp}/est.tum", "{seq}/groundtruth.tum"), 2, ("est.tum", "more than once"),
+       _tum_pair(lambda ls: [*ls[:3], ls[2], *ls[3:]]), needs=("eval",)),
 ]
 
 
