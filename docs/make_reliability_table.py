@@ -52,8 +52,8 @@ edit the table by hand. tests/test_reliability.py runs the same cases. -->
 | status | meaning |
 | --- | --- |
 | 0 | success (also for the awkward but valid inputs marked *accepted* below) |
-| 2 | bad input or bad usage: one line on stderr, no traceback: `Error: <file>: <what is \
-wrong>; <what would fix it>` |
+| 2 | bad input, bad usage, or outputs that cannot be written (disk full, read-only): one \
+line on stderr, no traceback: `Error: <file>: <what is wrong>; <what would fix it>` |
 | 1 | internal error (a bug): one line, `Error: internal error: <type>: <message> (run with \
 -v for the traceback)` |
 | 130 | interrupted (Ctrl-C, SIGINT); the frames done are on disk |

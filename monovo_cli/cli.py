@@ -6,10 +6,12 @@ Exit status (SPEC): 0 success; 2 bad usage or bad input (one line on stderr, no 
 
 from __future__ import annotations
 
+import errno
 import logging
 import signal
 import sys
 from pathlib import Path
+from typing import NoReturn
 
 import click
 
@@ -32,6 +34,10 @@ class Terminated(BaseException):
 
 def _on_sigterm(signum, frame):  # noqa: ARG001
     raise Terminated()
+
+
+_FULL_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG}
+_ENVIRONMENT_ERRNOS = _FULL_ERRNOS | {errno.EROFS, errno.EIO, errno.EACCES, errno.EPERM}
 
 
 class MonovoGroup(click.Group):
@@ -58,12 +64,31 @@ class MonovoGroup(click.Group):
             # final flush does not complain.
             _silence_stdout()
             sys.exit(141)
-        except Exception as exc:
+        except OSError as exc:
+            if exc.errno not in _ENVIRONMENT_ERRNOS:
+                _internal_error(ctx, exc)
             if ctx.meta.get("monovo.verbose"):
-                raise
-            msg = f"internal error: {type(exc).__name__}: {exc} (run with -v for the traceback)"
-            click.echo(f"Error: {msg}", err=True)
-            sys.exit(1)
+                log.exception("details")
+            # A full disk, a read-only or failing device: the outputs cannot be written,
+            # which the user can fix (exit 2), not a bug. No file name: a stream (motion.csv
+            # or stdout), whose unflushed rest must not fail again at exit.
+            if exc.filename is None:
+                _silence_stdout()
+            where = f"{exc.filename}: " if exc.filename is not None else "cannot write the outputs: "
+            hint = ("; free some space or write elsewhere (the rows done so far are kept)"
+                    if exc.errno in _FULL_ERRNOS else "")
+            raise BadInput(f"{where}{exc.strerror}{hint}") from None
+        except Exception as exc:
+            _internal_error(ctx, exc)
+
+
+def _internal_error(ctx: click.Context, exc: Exception) -> NoReturn:
+    """A bug: one line on stderr and exit 1, or the traceback with -v."""
+    if ctx.meta.get("monovo.verbose"):
+        raise exc
+    msg = f"internal error: {type(exc).__name__}: {exc} (run with -v for the traceback)"
+    click.echo(f"Error: {msg}", err=True)
+    sys.exit(1)
 
 
 def _silence_stdout() -> None:

@@ -44,6 +44,7 @@ class Case:
     setup: Callable[[Path, Path], None] | None = None
     note: str = ""  # a remark for the table
     needs: tuple[str, ...] = field(default=())  # commands this case needs in the CLI
+    stdout_to: str | None = None  # run in a subprocess with stdout sent to this file
 
 
 @dataclass(frozen=True)
@@ -486,6 +487,9 @@ CASES: list[Case] = [
        _write("f.txt", "x")),
     _c("model-out-missing-dir", "outputs", "init -o into a directory that does not exist",
        ("init", "{seq}", "-o", "{tmp}/no/dir/model.npz"), 2, ("no/dir", "cannot write")),
+    _c("out-disk-full", "outputs", "-o - into a full device (stdout is /dev/full)",
+       (*T, "{seq}", "-o", "-"), 2, ("cannot write the outputs", "no space left", "free some space"),
+       stdout_to="/dev/full"),
     _c("model-missing", "outputs", "--model file does not exist",
        (*T, "{seq}", *OUT, "--model", "{tmp}/model.npz"), 2, ("model.npz", "cannot read model")),
     _c("model-not-model", "outputs", "--model is not a model (init.yaml)",
@@ -605,6 +609,14 @@ def run_case(case: Case, tmp: Path, seq: Path) -> Outcome:
     args = substitute(case.args, tmp, seq)
     if case.id == "out-not-writable" and os.geteuid() == 0:
         args[args.index(str(tmp / "ro"))] = "/sys"
+    if case.stdout_to is not None:
+        import subprocess
+        import sys
+
+        with open(case.stdout_to, "w") as out:
+            proc = subprocess.run([sys.executable, "-m", "monovo_cli", *args], stdout=out,
+                                  stderr=subprocess.PIPE, text=True, timeout=300)
+        return Outcome(proc.returncode, "", proc.stderr)
     try:
         runner = CliRunner(mix_stderr=False)
     except TypeError:  # click >= 8.2 always keeps stderr apart
