@@ -143,22 +143,9 @@ with status `lost`, never NaN, never an exception. tests/test_reliability.py che
 for each kind alone and for all four in one drive. No exception and no NaN or infinite
 value is ever written.
 
-Known tracker issue (odometry/estimate, outside this page's files), pinned by a strict
-`xfail` test: a pure-noise frame (uniform 0..255) at frame 3 of the 128x128 seed-4 drive
-is reported `ok` (msd about 2300 where real frames give about 30) instead of `lost`; at
-frames 4 to 14 the same image is `lost`. Reproduction:
-
-```python
-import cv2, numpy as np
-from monovo_cli.synth import synthesize
-from click.testing import CliRunner
-from monovo_cli.cli import main
-synthesize("d", preset="drive", frames=12, size=(128, 128), seed=4)
-noise = np.random.default_rng(3).integers(0, 256, (128, 128)).astype(np.uint8)
-cv2.imwrite("d/frames/frame_000003.png", noise)
-CliRunner().invoke(main, ["track", "d", "-o", "d_out", "-q"])
-print(open("d_out/motion.csv").read().splitlines()[3])   # frame 3: ... ,ok,...
-```
+A pure-noise frame early in a drive (frame 3, before any msd history exists) used to pass
+as `ok`; the msd check now falls back to the keyframe's noise level (2 sigma^2) when there
+is no history, and the case `noise-at-3` is tested with the others.
 """
 
 

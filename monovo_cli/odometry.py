@@ -336,8 +336,10 @@ class Odometry:
             return "ill-conditioned normal equations"
         if self._score(est, key) < self.options.min_inliers:
             return "intensity differences do not fit the motion"
-        if len(self._recent_msd) >= 3 and \
-                est.msd > self.options.msd_factor * float(np.median(self._recent_msd)):
+        # msd baseline: the recent good frames, or before there are any, the two images' noise
+        baseline = float(np.median(self._recent_msd)) if self._recent_msd \
+            else 2.0 * key.noise_sigma ** 2
+        if est.msd > self.options.msd_factor * max(baseline, 1.0):
             return "mean squared difference rose sharply"
         if est.finest_iterations >= self.options.estimator.max_iterations:
             return "no convergence within the iteration cap"
@@ -386,7 +388,6 @@ class Odometry:
         self._cur_from_key_prev = np.eye(4)
         self._cov_prev = np.zeros((6, 6))
         self._gain, self._bias = 1.0, 0.0
-        self._recent_msd.clear()
         self._pending_reanchor = False
         return True
 

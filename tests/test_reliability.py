@@ -294,17 +294,7 @@ def test_degenerate_frames_never_nan_never_raise(degenerate_runs, kind):
     assert "nan" not in texts.lower() and "inf" not in texts.lower()
 
 
-_LOST_XFAIL = pytest.mark.xfail(strict=True, reason=(
-    "tracker bug (odometry.py/estimate.py, not this issue's files): a pure-noise frame at "
-    "frame 3 of the drive comes out 'ok' with msd ~2300 (real frames ~30) instead of 'lost' "
-    "(at frames 4..14 it is lost); see docs/reliability.md"))
-
-
-@pytest.mark.parametrize("kind", [
-    "black", "saturated", "constant", "noise",
-    pytest.param("noise-at-3", marks=_LOST_XFAIL),
-    "all",
-])
+@pytest.mark.parametrize("kind", ["black", "saturated", "constant", "noise", "noise-at-3", "all"])
 def test_degenerate_frames_are_lost(degenerate_runs, kind):
     status, output, rows, _, replaced = degenerate_runs[kind]
     assert status == 0, output
