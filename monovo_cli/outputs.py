@@ -38,11 +38,19 @@ def fmt(x: float) -> str:
     return repr(x)
 
 
+def _file_mode() -> int:
+    """The mode a plain ``open()`` would give a new file (0666 less the umask); mkstemp uses 0600."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
 def atomic_write_text(path: Path, text: str) -> None:
     """Write ``text`` to ``path`` through a temporary file in the same directory + rename."""
     path = Path(path)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        os.fchmod(fd, _file_mode())
     except OSError as exc:
         raise OutputError(f"{path.parent}: cannot write here ({exc.strerror})") from None
     try:
@@ -248,6 +256,7 @@ def save_model(path: Path, keyframe, camera, region) -> None:
             arrays[f"l{lv}_{name}"] = getattr(p, name)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        os.fchmod(fd, _file_mode())
     except OSError as exc:
         raise OutputError(f"{path.parent}: cannot write here ({exc.strerror})") from None
     try:
