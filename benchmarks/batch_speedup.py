@@ -5,12 +5,13 @@
 Synthesizes ``--sequences`` drives once (``monovo synth --preset drive``, different seeds),
 then tracks the archive with ``monovo batch``'s library call (:func:`run_batch`) on the
 local process pool with 1 and with 2 workers, interleaved ``--repeats`` times so both see
-the same load, then once on a Dask LocalCluster of 2 single-threaded worker processes.
-Wall times include starting the pool or cluster. Prints a markdown table: wall time, the
-ratio of 2 workers to the 1-worker run next to it (acceptance: <= 0.6 on 2 cores), the
-workers' CPU time and the load average before each run; then whether every sequence's
-motion.csv, trajectory.csv, trajectory.tum (and trajectory.png) are byte-identical between
-the executors.
+the same load; then on Dask with 2 single-threaded worker processes, once with ``--dask``
+(a LocalCluster started and stopped inside the batch) and once on a LocalCluster already
+running (``--scheduler``). Wall times include starting the pool (and the ``--dask``
+cluster). Prints a markdown table -- wall time, the ratio to the 1-worker run before it
+(acceptance: <= 0.6 for 2 workers on 2 cores), the workers' CPU time, the load average
+before each run -- then whether every sequence's motion.csv, trajectory.csv,
+trajectory.tum and trajectory.png are byte-identical between the executors.
 """
 
 from __future__ import annotations
@@ -97,11 +98,22 @@ def main() -> None:
             rows.append((r, "local", 2, *two, two[0] / one[0]))
         diffs = {"local 1 vs 2 workers": identical(tmp / "local1", tmp / "local2", names)}
         if not args.no_dask:
+            from distributed import LocalCluster
+
+            # --dask: a LocalCluster started and stopped inside the batch
             dask = timed_batch(root, tmp / "dask2", workers=2, dask=True)
-            # a LocalCluster's workers are not this process's children: no CPU figure
-            rows.append((args.repeats, "dask LocalCluster", 2, dask[0], None, dask[2],
-                         dask[0] / rows[-2][3]))
-            diffs["dask vs local"] = identical(tmp / "local2", tmp / "dask2", names)
+            # a cluster already running, as with --scheduler
+            with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                              dashboard_address=None) as cluster:
+                up = timed_batch(root, tmp / "dask2up", scheduler=cluster.scheduler_address)
+            # a cluster's workers are not this process's children: no CPU figure
+            one_wall = rows[-2][3]
+            rows.append((args.repeats, "dask, --dask (cluster start included)", 2, dask[0], None,
+                         dask[2], dask[0] / one_wall))
+            rows.append((args.repeats, "dask, --scheduler (cluster already up)", 2, up[0], None,
+                         up[2], up[0] / one_wall))
+            diffs["dask vs local"] = (identical(tmp / "local2", tmp / "dask2", names)
+                                      + identical(tmp / "local2", tmp / "dask2up", names))
         print("| run | executor | workers | wall (s) | ratio to 1 worker | worker CPU (s) | "
               "load before |")
         print("| --- | --- | --- | --- | --- | --- | --- |")
@@ -110,8 +122,8 @@ def main() -> None:
                   f"{'' if ratio is None else f'{ratio:.2f}'} | "
                   f"{'' if cpu is None else f'{cpu:.1f}'} | {load} |")
         print()
-        files = len(names) * len(COMPARED)
         for what, bad in diffs.items():
+            files = len(names) * len(COMPARED) * (2 if what.startswith("dask") else 1)
             print(f"{what}: {files - len(bad)}/{files} files byte-identical "
                   f"({', '.join(COMPARED)})" + (f"; differ: {', '.join(bad)}" if bad else ""))
     finally:
