@@ -45,8 +45,12 @@ def _file_mode() -> int:
     return 0o666 & ~mask
 
 
-def atomic_write_text(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same directory + rename."""
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file in the same directory + rename.
+
+    No half-written file ever carries the final name; the file gets the mode a plain
+    ``open()`` would give it.
+    """
     path = Path(path)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
@@ -54,8 +58,8 @@ def atomic_write_text(path: Path, text: str) -> None:
     except OSError as exc:
         raise OutputError(f"{path.parent}: cannot write here ({exc.strerror})") from None
     try:
-        with os.fdopen(fd, "w", newline="") as f:
-            f.write(text)
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
@@ -65,6 +69,11 @@ def atomic_write_text(path: Path, text: str) -> None:
         except OSError:
             pass
         raise
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """Write ``text`` (UTF-8, newlines as given) to ``path`` atomically."""
+    atomic_write_bytes(path, text.encode("utf-8"))
 
 
 @dataclass(frozen=True)
@@ -206,30 +215,43 @@ def read_tum(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return np.array(ts), np.array(poses)
 
 
-def read_motion_csv(path: Path) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """Read a motion CSV (SPEC columns first): frames (N,), ``prev_from_cur`` (N, 4, 4), statuses."""
-    path = Path(path)
+def _csv_rows(path: Path, what: str, columns: Sequence[str]) -> list[tuple[int, list[str]]]:
+    """The non-empty data rows of a CSV whose header starts with ``columns``, with line numbers;
+    each row has at least ``len(columns)`` fields."""
     try:
         with open(path, newline="") as f:
             rows = list(csv.reader(f))
     except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read motion CSV ({_reason(exc)})") from None
-    if not rows or [c.strip() for c in rows[0][:7]] != list(MOTION_COLUMNS[:7]):
-        raise InputError(f"{path}: expected a header starting with "
-                         f"{','.join(MOTION_COLUMNS[:7])}")
-    frames, poses, statuses = [], [], []
+        raise InputError(f"{path}: cannot read {what} ({_reason(exc)})") from None
+    n = len(columns)
+    if not rows or [c.strip() for c in rows[0][:n]] != list(columns):
+        raise InputError(f"{path}: expected a header starting with {','.join(columns)}")
+    out = []
     for i, r in enumerate(rows[1:], start=2):
         if not r:
             continue
-        if len(r) < 7:
-            raise InputError(f"{path}: line {i}: expected at least 7 fields, got {len(r)}")
+        if len(r) < n:
+            raise InputError(f"{path}: line {i}: expected at least {n} fields, got {len(r)}")
+        out.append((i, r))
+    return out
+
+
+def _frame_number(value: float, field: str, path: Path, lineno: int) -> int:
+    if value != int(value) or not 0 <= value <= MAX_FRAME:
+        raise InputError(f"{path}: line {lineno}: frame must be a whole number >= 0, got {field!r}")
+    return int(value)
+
+
+def read_motion_csv(path: Path) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """Read a motion CSV (SPEC columns first): frames (N,), ``prev_from_cur`` (N, 4, 4), statuses."""
+    path = Path(path)
+    frames, poses, statuses = [], [], []
+    for i, r in _csv_rows(path, "motion CSV", MOTION_COLUMNS[:7]):
         v = _floats(r[:7], path, i)
-        if v[0] != int(v[0]) or not 0 <= v[0] <= MAX_FRAME:
-            raise InputError(f"{path}: line {i}: frame must be a whole number >= 0, got {r[0]!r}")
+        frames.append(_frame_number(v[0], r[0], path, i))
         if max(abs(x) for x in v[4:7]) > MAX_ROTVEC_DEG:
             raise InputError(f"{path}: line {i}: rotation vector ({', '.join(r[4:7])}) is not "
                              "axis times angle in degrees (components beyond 1e6)")
-        frames.append(int(v[0]))
         poses.append(make_pose(so3_exp(np.radians(v[4:7])), np.array(v[1:4])))
         statuses.append(r[10].strip() if len(r) > 10 else "ok")
     return np.array(frames, dtype=int), np.array(poses).reshape(-1, 4, 4), statuses
@@ -254,21 +276,9 @@ def save_model(path: Path, keyframe, camera, region) -> None:
         p = kl.points
         for name in ("uv", "X", "intensity", "grad", "tri", "bary"):
             arrays[f"l{lv}_{name}"] = getattr(p, name)
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        os.fchmod(fd, _file_mode())
-    except OSError as exc:
-        raise OutputError(f"{path.parent}: cannot write here ({exc.strerror})") from None
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez_compressed(f, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    buf = io.BytesIO()
+    np.savez_compressed(buf, **arrays)
+    atomic_write_bytes(path, buf.getvalue())
 
 
 def load_model(path: Path):
@@ -319,22 +329,10 @@ def read_trajectory_csv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     """Read a trajectory.csv (SPEC columns first): frames (N,), timestamps (N,) s and
     ``world_from_cam`` poses (N, 4, 4). Frames must be distinct whole numbers."""
     path = Path(path)
-    try:
-        with open(path, newline="") as f:
-            rows = list(csv.reader(f))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read trajectory CSV ({_reason(exc)})") from None
-    if not rows or [c.strip() for c in rows[0][:9]] != list(TRAJECTORY_COLUMNS):
-        raise InputError(f"{path}: expected a header starting with {','.join(TRAJECTORY_COLUMNS)}")
     frames, ts, poses = [], [], []
-    for i, r in enumerate(rows[1:], start=2):
-        if not r:
-            continue
-        if len(r) < 9:
-            raise InputError(f"{path}: line {i}: expected at least 9 fields, got {len(r)}")
+    for i, r in _csv_rows(path, "trajectory CSV", TRAJECTORY_COLUMNS):
         v = _floats(r[:9], path, i)
-        if v[0] != int(v[0]) or not 0 <= v[0] <= MAX_FRAME:
-            raise InputError(f"{path}: line {i}: frame must be a whole number >= 0, got {r[0]!r}")
+        _frame_number(v[0], r[0], path, i)
         R = _quat_rotation(v[5:9], path, i)
         frames.append(int(v[0]))
         ts.append(v[1])
@@ -350,21 +348,8 @@ def read_trajectory_csv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]
 def read_motion_stats(path: Path) -> dict[int, tuple[str, float]]:
     """``{frame: (status, msd)}`` from a motion.csv (SPEC columns first)."""
     path = Path(path)
-    try:
-        with open(path, newline="") as f:
-            rows = list(csv.reader(f))
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InputError(f"{path}: cannot read motion CSV ({_reason(exc)})") from None
-    if not rows or [c.strip() for c in rows[0][:11]] != list(MOTION_COLUMNS):
-        raise InputError(f"{path}: expected a header starting with {','.join(MOTION_COLUMNS)}")
     out: dict[int, tuple[str, float]] = {}
-    for i, r in enumerate(rows[1:], start=2):
-        if not r:
-            continue
-        if len(r) < 11:
-            raise InputError(f"{path}: line {i}: expected at least 11 fields, got {len(r)}")
+    for i, r in _csv_rows(path, "motion CSV", MOTION_COLUMNS):
         frame, msd = _floats([r[0], r[7]], path, i)
-        if frame != int(frame) or not 0 <= frame <= MAX_FRAME:
-            raise InputError(f"{path}: line {i}: frame must be a whole number >= 0, got {r[0]!r}")
-        out[int(frame)] = (r[10].strip(), msd)
+        out[_frame_number(frame, r[0], path, i)] = (r[10].strip(), msd)
     return out

@@ -190,22 +190,10 @@ def open_sink(out: str | Path, *, fps: float = 10.0, overwrite: bool = False) ->
 
 def write_png_atomic(path: Path, image: np.ndarray) -> None:
     """Write ``image`` (H, W[, 3]) uint8 as a PNG through a temporary file + rename."""
+    from monovo_cli.outputs import atomic_write_bytes
+
     path = Path(path)
     ok, buf = cv2.imencode(".png", image)
     if not ok:
         raise OutputError(f"{path}: cannot encode PNG")
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    except OSError as exc:
-        raise OutputError(f"{path.parent}: cannot write here ({exc.strerror})") from None
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(buf.tobytes())
-        _public_mode(Path(tmp), False)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    atomic_write_bytes(path, buf.tobytes())
