@@ -189,13 +189,17 @@ class PinholeCamera:
         return any(abs(c) > 0.0 for c in self.distortion)
 
     def scaled(self, level: int) -> PinholeCamera:
-        """The camera of pyramid level ``level`` (each level halves the image, cv2.pyrDown)."""
+        """The camera of pyramid level ``level`` (each level halves the image, cv2.pyrDown).
+
+        cv2.pyrDown smooths, then keeps the even rows and columns: pixel j of level l sits
+        at pixel ``j * 2**l`` of level 0, so ``x_l = x_0 / 2**l`` (no half-pixel shift).
+        """
         w, h = self.width, self.height
         for _ in range(level):
             w, h = (w + 1) // 2, (h + 1) // 2
         s = 0.5 ** level
         return replace(self, width=w, height=h, fx=self.fx * s, fy=self.fy * s,
-                       cx=(self.cx + 0.5) * s - 0.5, cy=(self.cy + 0.5) * s - 0.5)
+                       cx=self.cx * s, cy=self.cy * s)
 
     def project(self, X: np.ndarray) -> np.ndarray:
         """Pixels (N, 2) of camera-frame points ``X`` (N, 3), metres; z must be > 0."""

@@ -1,6 +1,7 @@
 """Gaussian image pyramids (cv2.pyrDown: 5-tap binomial filter, then every other pixel).
 
-Level l has the camera ``PinholeCamera.scaled(l)``: pixel centre x_l = (x_0 + 0.5) / 2^l - 0.5.
+Level l has the camera ``PinholeCamera.scaled(l)``: pyrDown keeps the even pixels of the
+smoothed image, so pixel x_l of level l is pixel x_0 = 2^l x_l of level 0.
 """
 
 from __future__ import annotations
