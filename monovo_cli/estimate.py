@@ -387,9 +387,16 @@ def coarse_search(level: KeyLevel, image: np.ndarray, cur_from_key: np.ndarray, 
     Each hypothesis ``exp(w) cur_from_key`` (rotations about the current camera's x and y by
     ``angles_deg``, about z by ``roll_deg``) is refined with a few Gauss-Newton iterations at
     this level; the one with the most inliers wins. Returns the winning ``cur_from_key``.
+
+    ``noise_sigma`` is the full-resolution noise; each pyramid level's 5-tap binomial
+    smoothing divides white noise by ~3.7 (0.273 per level), so the inlier threshold is scaled
+    to the level, but kept above 5 % of the level's contrast (interpolation and texture
+    mismatch). A full-resolution threshold would call every hypothesis good at high noise.
     """
     best, best_score = np.array(cur_from_key, dtype=np.float64), -1.0
     image = image if isinstance(image, QuadImage) else QuadImage(image)
+    contrast = float(np.std(level.points.intensity)) if len(level.points) else 1.0
+    noise_sigma = max(noise_sigma * 0.273 ** level.points.level, 0.05 * contrast)
     for rz in roll_deg:
         for rx in angles_deg:
             for ry in angles_deg:
