@@ -17,17 +17,36 @@ trajectory.tum and trajectory.png are byte-identical between the executors.
 from __future__ import annotations
 
 import argparse
+import atexit
 import os
 import resource
 import shutil
+import sys
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-from benchmarks.common import machine
-from monovo_cli.batch import run_batch
-from monovo_cli.synth import synthesize
+
+def _code_snapshot() -> None:
+    """Import monovo_cli from a copy taken now, here and in every worker (sys.path, which
+    spawned processes inherit, and PYTHONPATH): in a working tree others edit, code changed
+    during the run would reach the workers started later and void the identity check."""
+    snap = Path(tempfile.mkdtemp(prefix="monovo-code-"))
+    atexit.register(shutil.rmtree, snap, True)
+    shutil.copytree(Path(__file__).resolve().parent.parent / "monovo_cli", snap / "monovo_cli",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    sys.path.insert(0, str(snap))
+    os.environ["PYTHONPATH"] = os.pathsep.join(p for p in (str(snap), os.environ.get("PYTHONPATH"))
+                                               if p)
+
+
+if __name__ == "__main__":  # not in spawned workers (__mp_main__): they get the parent's path
+    _code_snapshot()
+
+from benchmarks.common import machine  # noqa: E402
+from monovo_cli.batch import run_batch  # noqa: E402
+from monovo_cli.synth import synthesize  # noqa: E402
 
 COMPARED = ("motion.csv", "trajectory.csv", "trajectory.tum", "trajectory.png")
 
@@ -81,7 +100,10 @@ def main() -> None:
                     help="Keep the synthesized archive here (reused when it is there).")
     args = ap.parse_args()
     w, h = (int(v) for v in args.size.split("x"))
-    print(f"machine: {machine()}\n")
+    import monovo_cli
+
+    print(f"machine: {machine()}")
+    print(f"code: a copy of monovo_cli/ taken at the start ({Path(monovo_cli.__file__).parent})\n")
     tmp = Path(tempfile.mkdtemp(prefix="monovo-batch-bench-"))
     root = args.keep or tmp / "archive"
     try:

@@ -184,3 +184,18 @@ def pair_scenes(pairs_dir: Path):
                                "benchmarks.common.pair_scenes needs updating")
         scenes.append(PairScene(d, g0, g1, tuple(int(v) for v in cfg.ground.region)))
     return cam, tex, scenes
+
+
+def add_points_option(ap) -> None:
+    """``--max-points N``: monovo's observation-point cap (default: the tool's own default)."""
+    ap.add_argument("--max-points", type=int, default=None,
+                    help="monovo's cap on observation points at full resolution [default: "
+                         "monovo's default, one per 16 px]; e.g. 400000 to use every pixel "
+                         "above the gradient threshold")
+
+
+def track_options(args):
+    """monovo's TrackOptions for a benchmark run (only ``--max-points`` is varied)."""
+    from monovo_cli.odometry import TrackOptions
+
+    return TrackOptions(max_points=getattr(args, "max_points", None))

@@ -47,10 +47,17 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import AXES, PairScene, machine, one_core, pair_scenes
+from benchmarks.common import (
+    AXES,
+    PairScene,
+    add_points_option,
+    machine,
+    one_core,
+    pair_scenes,
+    track_options,
+)
 from benchmarks.paper_tables import run_pairs, scene_header
 from monovo_cli.geometry import PinholeCamera, pose_from_vectors, so3_log
-from monovo_cli.odometry import TrackOptions
 from monovo_cli.synth import GroundRenderer, plane_homography
 
 H_T = 3e-3  # m
@@ -128,6 +135,7 @@ def crb_table(errs: np.ndarray, stds: np.ndarray) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_points_option(ap)
     ap.add_argument("--pairs", type=int, default=50, help="pairs (the first N of paper_tables' pairs)")
     ap.add_argument("--noise-var", type=float, nargs="+", default=[0.0, 10.0, 50.0, 100.0])
     ap.add_argument("--seed", type=int, default=1, help="same default as paper_tables")
@@ -140,7 +148,7 @@ def main() -> None:
     for nv in args.noise_var:
         with tempfile.TemporaryDirectory() as tmp:
             root = Path(tmp) / "pairs"
-            errs, ok, _, _ = run_pairs(root, args.pairs, nv, args.seed, TrackOptions())
+            errs, ok, _, _ = run_pairs(root, args.pairs, nv, args.seed, track_options(args))
             if infos is None:  # the geometry is the same at every noise level
                 cam, tex, scenes = pair_scenes(root)
                 renderer = GroundRenderer(cam, tex)

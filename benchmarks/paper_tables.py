@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import axis_table, machine, motion_errors, one_core
+from benchmarks.common import add_points_option, axis_table, machine, motion_errors, one_core, track_options
 from monovo_cli.config import load_init
 from monovo_cli.frames import FrameSequence
 from monovo_cli.ground import Plane
@@ -93,6 +93,7 @@ def scene_header(n_pairs: int, seed: int) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_points_option(ap)
     ap.add_argument("--pairs", type=int, default=100, help="pairs per noise level (paper: 1000)")
     ap.add_argument("--noise-var", type=float, nargs="+", default=[0.0, 10.0, 50.0, 100.0],
                     help="noise variances (grey levels^2), one table each")
@@ -104,7 +105,8 @@ def main() -> None:
     summary = []
     for nv in args.noise_var:
         with tempfile.TemporaryDirectory() as tmp:
-            errs, ok, secs, cpu = run_pairs(Path(tmp) / "pairs", args.pairs, nv, args.seed, TrackOptions())
+            errs, ok, secs, cpu = run_pairs(Path(tmp) / "pairs", args.pairs, nv, args.seed,
+                                            track_options(args))
         print(f"### {args.pairs} pairs, 688x544, noise variance {nv:g}: "
               f"{ok.sum()}/{len(ok)} converged ({100 * ok.mean():.1f} %), "
               f"{1000 * np.median(secs):.0f} ms median per pair wall, {1000 * np.median(cpu):.0f} ms "

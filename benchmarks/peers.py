@@ -52,7 +52,17 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from benchmarks.common import AXES, Stopwatch, final_drift, load, machine, motion_errors, one_core
+from benchmarks.common import (
+    AXES,
+    Stopwatch,
+    add_points_option,
+    final_drift,
+    load,
+    machine,
+    motion_errors,
+    one_core,
+    track_options,
+)
 from benchmarks.paper_tables import run_pairs
 from monovo_cli.config import load_init
 from monovo_cli.geometry import make_pose, se3_inv
@@ -253,9 +263,9 @@ def peer_on_drive(peer, seq: Path) -> MethodResult:
                         final_drift(np.array(poses), gt_traj))
 
 
-def monovo_on_drive(seq: Path, out: Path) -> MethodResult:
+def monovo_on_drive(seq: Path, out: Path, options=None) -> MethodResult:
     with Stopwatch() as watch:
-        track_sequence(seq, None, out, TrackOptions())
+        track_sequence(seq, None, out, options or TrackOptions())
     _, est, _ = read_motion_csv(out / "motion.csv")
     _, gt, _ = read_motion_csv(seq / "groundtruth_motion.csv")
     _, traj = read_tum(out / "trajectory.tum")
@@ -373,6 +383,7 @@ def check(n_pairs: int = 10) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_points_option(ap)
     ap.add_argument("--pairs", type=int, default=100, help="pairs (0: skip)")
     ap.add_argument("--pair-noise-var", type=float, default=10.0)
     ap.add_argument("--pair-seed", type=int, default=1, help="same default as paper_tables")
@@ -392,8 +403,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         if args.pairs:
             root = Path(tmp) / "pairs"
-            errs, _, secs, cpu = run_pairs(root, args.pairs, args.pair_noise_var, args.pair_seed,
-                                           TrackOptions())
+            errs, _, secs, cpu = run_pairs(root, args.pairs, args.pair_noise_var,
+                                           args.pair_seed, track_options(args))
             pairs = sorted(p for p in root.iterdir() if p.name.startswith("pair_"))
             pair_res = [MethodResult("monovo", errs, float(secs.sum()), float(cpu.sum()), len(pairs))]
             pair_res += [peer_on_pairs(p, pairs) for p in (OrbPeer(), EccPeer())]
@@ -408,7 +419,7 @@ def main() -> None:
             seq = Path(tmp) / "drive"
             synthesize(seq, preset="drive", frames=args.frames, size=(w, h),
                        noise_var=args.drive_noise_var, seed=args.drive_seed)
-            drive_res = [monovo_on_drive(seq, Path(tmp) / "out")]
+            drive_res = [monovo_on_drive(seq, Path(tmp) / "out", track_options(args))]
             drive_res += [peer_on_drive(p, seq) for p in (OrbPeer(), EccPeer())]
             print(f"### {args.frames}-frame drive ({args.size}, noise variance "
                   f"{args.drive_noise_var:g}, seed {args.drive_seed}), frame to frame, mean "
