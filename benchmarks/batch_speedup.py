@@ -69,17 +69,36 @@ def _children_cpu() -> float:
     return ru.ru_utime + ru.ru_stime
 
 
-def timed_batch(root: Path, out: Path, **kw) -> tuple[float, float, str]:
-    """(wall s, CPU s of the finished worker processes, load before) of one batch into ``out``."""
+def _machine_busy_cpu() -> float | None:
+    """CPU seconds all processes of the machine have used since boot (/proc/stat), or None."""
+    try:
+        v = [int(x) for x in Path("/proc/stat").read_text().split("\n", 1)[0].split()[1:9]]
+    except (OSError, ValueError):
+        return None
+    return (sum(v) - v[3] - v[4]) / os.sysconf("SC_CLK_TCK")  # all but idle and iowait
+
+
+def timed_batch(root: Path, out: Path, **kw) -> dict:
+    """One batch into ``out``: ``wall`` s; ``cpu`` s of this process and its finished
+    children (the pool's workers, a --dask cluster's); ``others`` CPU s the rest of the
+    machine used meanwhile (the competition: ~0 on an idle machine; None where the
+    workers are not our children, i.e. on a cluster already up); ``load`` before."""
     shutil.rmtree(out, ignore_errors=True)
-    load = f"{os.getloadavg()[0]:.1f}"
-    cpu0, t0 = _children_cpu(), time.perf_counter()
+    load = os.getloadavg()[0]
+    busy0, cpu0 = _machine_busy_cpu(), _children_cpu() + time.process_time()
+    t0 = time.perf_counter()
     s = run_batch(root, out, **kw)
-    wall, cpu = time.perf_counter() - t0, _children_cpu() - cpu0
+    wall = time.perf_counter() - t0
+    cpu = _children_cpu() + time.process_time() - cpu0
+    busy1 = _machine_busy_cpu()
     bad = [r["sequence"] for r in s.results if r["status"] != "ok"]
     if bad:
         raise SystemExit(f"sequences failed: {bad}")
-    return wall, cpu, load
+    others = None
+    if busy0 is not None and busy1 is not None and "scheduler" not in kw:
+        others = max(0.0, busy1 - busy0 - cpu)
+    return {"wall": wall, "cpu": cpu if "scheduler" not in kw else None, "others": others,
+            "load": load}
 
 
 def identical(a: Path, b: Path, names: list[str]) -> list[str]:
@@ -112,37 +131,38 @@ def main() -> None:
         print(f"archive: {args.sequences} drives of {args.frames} frames, {w}x{h}, in {root} "
               f"(synthesized in {time.perf_counter() - t0:.0f} s)\n")
         names = [f"drive_{i:02d}" for i in range(args.sequences)]
-        rows = []
+        rows = []  # (run, executor, workers, timed_batch's dict, ratio to 1 worker)
         for r in range(1, args.repeats + 1):
             one = timed_batch(root, tmp / "local1", workers=1)
             two = timed_batch(root, tmp / "local2", workers=2)
-            rows.append((r, "local", 1, *one, None))
-            rows.append((r, "local", 2, *two, two[0] / one[0]))
+            rows += [(r, "local", 1, one, None), (r, "local", 2, two, two["wall"] / one["wall"])]
         diffs = {"local 1 vs 2 workers": identical(tmp / "local1", tmp / "local2", names)}
         if not args.no_dask:
             from distributed import LocalCluster
 
+            one_wall = rows[-2][3]["wall"]
             # --dask: a LocalCluster started and stopped inside the batch
             dask = timed_batch(root, tmp / "dask2", workers=2, dask=True)
+            rows.append((args.repeats, "dask, --dask (cluster start included)", 2, dask,
+                         dask["wall"] / one_wall))
             # a cluster already running, as with --scheduler
             with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                               dashboard_address=None) as cluster:
                 up = timed_batch(root, tmp / "dask2up", scheduler=cluster.scheduler_address)
-            # a cluster's workers are not this process's children: no CPU figure
-            one_wall = rows[-2][3]
-            rows.append((args.repeats, "dask, --dask (cluster start included)", 2, dask[0], None,
-                         dask[2], dask[0] / one_wall))
-            rows.append((args.repeats, "dask, --scheduler (cluster already up)", 2, up[0], None,
-                         up[2], up[0] / one_wall))
+            rows.append((args.repeats, "dask, --scheduler (cluster already up)", 2, up,
+                         up["wall"] / one_wall))
             diffs["dask vs local"] = (identical(tmp / "local2", tmp / "dask2", names)
                                       + identical(tmp / "local2", tmp / "dask2up", names))
-        print("| run | executor | workers | wall (s) | ratio to 1 worker | worker CPU (s) | "
-              "load before |")
-        print("| --- | --- | --- | --- | --- | --- | --- |")
-        for run, ex, n, wall, cpu, load, ratio in rows:
-            print(f"| {run} | {ex} | {n} | {wall:.1f} | "
-                  f"{'' if ratio is None else f'{ratio:.2f}'} | "
-                  f"{'' if cpu is None else f'{cpu:.1f}'} | {load} |")
+
+        def num(x, spec):
+            return "" if x is None else format(x, spec)
+
+        print("| run | executor | workers | wall (s) | ratio to 1 worker | our CPU (s) | "
+              "others' CPU meanwhile (s) | load before |")
+        print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+        for run, ex, n, t, ratio in rows:
+            print(f"| {run} | {ex} | {n} | {t['wall']:.1f} | {num(ratio, '.2f')} | "
+                  f"{num(t['cpu'], '.1f')} | {num(t['others'], '.1f')} | {t['load']:.1f} |")
         print()
         for what, bad in diffs.items():
             files = len(names) * len(COMPARED) * (2 if what.startswith("dask") else 1)
