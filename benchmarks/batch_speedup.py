@@ -1,6 +1,6 @@
 """monovo batch: wall time of 1 vs 2 local workers, and Dask-vs-local byte identity.
 
-    python -m benchmarks.batch_speedup --sequences 8 --frames 200 --size 256x256 --repeats 2
+    python -m benchmarks.batch_speedup --sequences 8 --frames 200 --size 256x256 --repeats 3
 
 Synthesizes ``--sequences`` drives once (``monovo synth --preset drive``, different seeds),
 then tracks the archive with ``monovo batch``'s library call (:func:`run_batch`) on the
@@ -21,6 +21,7 @@ import atexit
 import os
 import resource
 import shutil
+import statistics
 import sys
 import tempfile
 import time
@@ -113,7 +114,7 @@ def main() -> None:
     ap.add_argument("--sequences", type=int, default=8)
     ap.add_argument("--frames", type=int, default=200)
     ap.add_argument("--size", default="256x256")
-    ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--no-dask", action="store_true", help="Skip the Dask LocalCluster run.")
     ap.add_argument("--keep", type=Path, default=None,
                     help="Keep the synthesized archive here (reused when it is there).")
@@ -163,7 +164,12 @@ def main() -> None:
         for run, ex, n, t, ratio in rows:
             print(f"| {run} | {ex} | {n} | {t['wall']:.1f} | {num(ratio, '.2f')} | "
                   f"{num(t['cpu'], '.1f')} | {num(t['others'], '.1f')} | {t['load']:.1f} |")
-        print()
+        walls = {n: [t["wall"] for _, ex, w, t, _ in rows if ex == "local" and w == n]
+                 for n in (1, 2)}
+        ratios = [ratio for _, ex, w, _, ratio in rows if ex == "local" and w == 2]
+        print(f"\nbest of {args.repeats}: 1 worker {min(walls[1]):.1f} s, 2 workers "
+              f"{min(walls[2]):.1f} s, ratio {min(walls[2]) / min(walls[1]):.2f}; median of the "
+              f"paired ratios {statistics.median(ratios):.2f}\n")
         for what, bad in diffs.items():
             files = len(names) * len(COMPARED) * (2 if what.startswith("dask") else 1)
             print(f"{what}: {files - len(bad)}/{files} files byte-identical "
