@@ -85,6 +85,15 @@ def _natural_parts(rel: Path) -> tuple:
     return tuple(natural_key(p) for p in rel.parts)
 
 
+def available_cores() -> int:
+    """The cores this process may run on: its CPU affinity where the OS has one (a SLURM
+    allocation, ``taskset``), else ``os.cpu_count()``."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):  # macOS, Windows
+        return os.cpu_count() or 1
+
+
 def is_sequence_folder(path: Path) -> bool:
     """True when ``path`` holds a ``frames/`` directory and an ``init.yaml`` file."""
     path = Path(path)
@@ -621,7 +630,7 @@ def run_batch(root: str | Path, out_root: str | Path, options: dict[str, Any] | 
     Sequences come from :func:`find_sequences` (``pattern``: a glob). Each is tracked by
     ``task`` (:func:`track_one`, or a function of the same signature) with ``options``
     (keys of :data:`DEFAULT_OPTIONS`), on a local pool of ``workers`` spawned processes
-    (default: the number of cores), on a Dask LocalCluster of ``workers`` processes
+    (default: :func:`available_cores`), on a Dask LocalCluster of ``workers`` processes
     (``dask``), or on the Dask scheduler at ``scheduler`` (``tcp://HOST:PORT``; its workers
     must see ``root`` and ``out_root`` at the same paths and have monovo installed).
 
@@ -647,7 +656,7 @@ def run_batch(root: str | Path, out_root: str | Path, options: dict[str, Any] | 
     use_dask = dask or scheduler is not None
     if use_dask:  # fail before any work if Dask is missing
         _import_distributed(f"--scheduler {scheduler}" if scheduler else "--dask")
-    workers = int(workers) if workers else (os.cpu_count() or 1)
+    workers = int(workers) if workers else available_cores()
     if workers < 1:
         raise MonovoError(f"--workers {workers}: expected at least 1")
     rels = find_sequences(root, pattern=pattern, exclude=[out_root])
