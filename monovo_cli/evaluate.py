@@ -218,19 +218,19 @@ def format_report(ev: Evaluation) -> str:
 
     lines = [f"{ev.poses} poses, {max(ev.poses - 1, 0)} relative motions, "
              f"true path length {ev.distance_m:.3f} m", "",
-             "Absolute relative-motion error, translation (Table 10.1)",
-             f"  {'axis':<10}{'mean (m)':>14}{'std (m)':>14}"]
-    for i, a in enumerate(("|E_Tx|", "|E_Ty|", "|E_Tz|")):
-        lines.append(f"  {a:<10}{g(ev.relative_mean[i]):>14}{g(ev.relative_std[i]):>14}")
-    lines.append(f"  {'average':<10}{g(ev.relative_mean[:3].mean()):>14}"
-                 f"{g(ev.relative_std[:3].mean()):>14}")
-    lines += ["", "Absolute relative-motion error, rotation (Table 10.2)",
-              f"  {'axis':<10}{'mean (deg)':>14}{'std (deg)':>14}"]
-    for i, a in enumerate(("|E_wx|", "|E_wy|", "|E_wz|")):
-        lines.append(f"  {a:<10}{g(ev.relative_mean[3 + i]):>14}{g(ev.relative_std[3 + i]):>14}")
-    lines.append(f"  {'average':<10}{g(ev.relative_mean[3:].mean()):>14}"
-                 f"{g(ev.relative_std[3:].mean()):>14}")
-    lines += ["", "Trajectory",
+             ]
+    for title, unit, axes, first in (("translation (Table 10.1)", "m", "TxTyTz", 0),
+                                     ("rotation (Table 10.2)", "deg", "wxwywz", 3)):
+        part = slice(first, first + 3)
+        lines += [f"Absolute relative-motion error, {title}",
+                  f"  {'axis':<10}{f'mean ({unit})':>14}{f'std ({unit})':>14}"]
+        for i in range(3):
+            a = f"|E_{axes[2 * i:2 * i + 2]}|"
+            lines.append(f"  {a:<10}{g(ev.relative_mean[first + i]):>14}"
+                         f"{g(ev.relative_std[first + i]):>14}")
+        lines += [f"  {'average':<10}{g(ev.relative_mean[part].mean()):>14}"
+                  f"{g(ev.relative_std[part].mean()):>14}", ""]
+    lines += ["Trajectory",
               f"  ATE RMSE, no alignment      {ev.ate_rmse:.6f} m (max {ev.ate_max:.6f} m)"]
     if ev.ate_rmse_aligned is not None:
         lines.append(f"  ATE RMSE, SE(3) aligned     {ev.ate_rmse_aligned:.6f} m")
