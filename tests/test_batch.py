@@ -176,14 +176,15 @@ def test_dask_missing_is_a_clear_usage_error(archive, tmp_path, monkeypatch):
 
 
 def _flaky_track(seq_dir, out_dir, options, *, overwrite=False):
-    """track_one, except that the worker process dies: always in 's2', and in 's1' once,
-    after it began writing (as under the OOM killer or a node going away)."""
+    """track_one, except that the worker process dies in 's2' after it began writing (as
+    under the OOM killer or a node going away). 's1', if it was running in the same pool,
+    is lost with it and must be redone alone. (An earlier version also killed 's1' once;
+    when the pool broke before 's1' started, its one death fell on its lone rerun, so the
+    test depended on timing.)"""
     name, out_dir = Path(seq_dir).name, Path(out_dir)
-    once = out_dir.parent / f".{name}.died"
-    if name == "s2" or (name == "s1" and not once.exists()):
+    if name == "s2":
         out_dir.mkdir(parents=True, exist_ok=True)
         (out_dir / "motion.csv").write_text("frame,tx\n1,0.1\n")
-        once.touch()
         os._exit(3)
     import cv2
 
@@ -195,7 +196,7 @@ def test_a_dying_worker_fails_only_its_sequence(archive, local_out, tmp_path):
     out = tmp_path / "o"
     s = run_batch(archive, out, workers=2, task=_flaky_track, pattern="a/*")
     status = {r["sequence"]: r["status"] for r in s.results}
-    assert status == {"a/s1": "ok", "a/s2": "failed"}  # s1 redone alone after the pool broke
+    assert status == {"a/s1": "ok", "a/s2": "failed"}  # s1 done, or redone alone
     (bad,) = s.internal_errors
     assert "worker process died" in bad["error"]
     assert s.results[0]["threads"] == ("1", 1)  # single-threaded workers
