@@ -154,7 +154,7 @@ def test_dask_local_cluster_gives_identical_outputs(archive, local_out, tmp_path
         assert rows[BROKEN]["status"] == "failed" and "init.yaml" in rows[BROKEN]["error"]
         # a worker dying halfway through a sequence: Dask reruns the task on a new worker
         flaky = run_batch(archive, tmp_path / "flaky", scheduler=cluster.scheduler_address,
-                          task=_flaky_track, pattern="a/s1")
+                          task=_dies_once_track, pattern="a/s1")
     assert [r["status"] for r in flaky.results] == ["ok"]
     assert (tmp_path / "flaky" / "a" / ".s1.died").exists()  # it did die once
     for rel in GOOD:
@@ -173,6 +173,18 @@ def test_dask_missing_is_a_clear_usage_error(archive, tmp_path, monkeypatch):
     assert r.exit_code == 2
     assert "needs Dask, which is not installed; install it with pip install 'monovo[dask]'" in r.output
     assert "Traceback" not in r.output and not (tmp_path / "o").exists()
+
+
+def _dies_once_track(seq_dir, out_dir, options, *, overwrite=False):
+    """track_one, except that the worker dies the first time, after it began writing."""
+    out_dir = Path(out_dir)
+    once = out_dir.parent / f".{Path(seq_dir).name}.died"
+    if not once.exists():
+        out_dir.mkdir(parents=True, exist_ok=True)
+        (out_dir / "motion.csv").write_text("frame,tx\n1,0.1\n")
+        once.touch()
+        os._exit(3)
+    return track_one(seq_dir, out_dir, options, overwrite=overwrite)
 
 
 def _flaky_track(seq_dir, out_dir, options, *, overwrite=False):
