@@ -257,7 +257,7 @@ class Estimate:
 
 
 def residuals(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float = 1.0,
-              bias: float = 0.0) -> tuple[np.ndarray, np.ndarray, None]:
+              bias: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """FD (eq. 10.2) at one level: ``I_cur(pi(T X_i)) - (gain I_i + bias)`` (N,) float32, validity (N,)."""
     pts = level.points
     cam = pts.camera
@@ -283,7 +283,7 @@ def residuals(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float = 1
         vals -= np.float32(gain) * pts.intensity + np.float32(bias)
     else:
         vals -= pts.intensity
-    return vals, valid, None
+    return vals, valid
 
 
 def _probe_move(level: KeyLevel, T0: np.ndarray, T1: np.ndarray) -> float:
@@ -312,8 +312,6 @@ class _LevelResult:
     iterations: int
     r: np.ndarray
     valid: np.ndarray
-    w: np.ndarray
-    H: np.ndarray
 
 
 def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float, bias: float,
@@ -321,10 +319,8 @@ def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float,
     """Gauss-Newton / IRLS iterations at one pyramid level."""
     npar = 8 if opts.photometric else 6
     J = level.J if opts.photometric else level.J[:, :6]
-    r, valid, _ = residuals(level, image, T, gain, bias)
+    r, valid = residuals(level, image, T, gain, bias)
     n = len(r)
-    w = np.zeros(n, np.float32)
-    H = np.eye(npar)
     iterations = 0
     min_valid = max(opts.min_valid_points, npar)
     scale = None  # the robust scale, from this level's first residuals (MAD)
@@ -351,7 +347,7 @@ def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float,
             T_new = T @ se3_exp(-p[:6])
             g_new = gain + (p[6] if npar == 8 else 0.0)
             b_new = bias + (p[7] if npar == 8 else 0.0)
-            r_new, valid_new, _ = residuals(level, image, T_new, g_new, b_new)
+            r_new, valid_new = residuals(level, image, T_new, g_new, b_new)
             if np.count_nonzero(valid_new) >= min_valid and \
                     _rho_mean(r_new[valid_new], scale, opts) <= cost * (1.0 + 1e-7):
                 break
@@ -366,7 +362,7 @@ def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float,
         rel = (msd_old - msd_new) / max(msd_old, 1e-12)
         if move < step_tol or (0.0 <= rel < opts.min_msd_decrease and move < 10 * step_tol):
             break
-    return _LevelResult(T, gain, bias, iterations, r, valid, w, H)
+    return _LevelResult(T, gain, bias, iterations, r, valid)
 
 
 def inlier_fraction(r: np.ndarray, valid: np.ndarray, noise_sigma: float) -> float:

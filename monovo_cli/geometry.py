@@ -123,11 +123,6 @@ def pose_from_vectors(t: np.ndarray, rotvec: np.ndarray) -> np.ndarray:
     return make_pose(so3_exp(rotvec), np.asarray(t, dtype=float))
 
 
-def vectors_from_pose(T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(t, rotvec)`` of a 4x4 transform: translation (m) and rotation vector (rad)."""
-    return T[:3, 3].copy(), so3_log(T[:3, :3])
-
-
 def quat_from_matrix(R: np.ndarray) -> np.ndarray:
     """Unit quaternion ``(qx, qy, qz, qw)`` with ``qw >= 0`` of a rotation matrix."""
     R = np.asarray(R, dtype=float)
