@@ -40,6 +40,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from monovo_cli.geometry import se3_exp
@@ -58,6 +59,7 @@ class EstimatorOptions:
     tukey_c: float = 4.685
     photometric: bool = True
     min_valid_points: int = 20
+    interpolation: str = "cubic"     # at the finest level: "cubic" (B-spline) or "linear"
 
 
 def observation_matrix(X: np.ndarray, grad: np.ndarray, fx: float, fy: float,
@@ -154,6 +156,80 @@ def sample_bilinear(image: np.ndarray | QuadImage, u: np.ndarray,
     top = p00 + ax * (p01 - p00)
     bot = p10 + ax * (p11 - p10)
     return top + ay * (bot - top), valid
+
+
+_BSPLINE_POLE = np.sqrt(3.0) - 2.0
+
+
+def _bspline_prefilter_kernel(half: int = 8) -> np.ndarray:
+    """FIR form of the cubic B-spline interpolation prefilter (the inverse of [1, 4, 1]/6),
+    truncated at ``half`` taps each side (the pole's power 0.27^9 < 1e-5) and renormalised."""
+    z = _BSPLINE_POLE
+    k = np.arange(-half, half + 1)
+    c = (-6.0 * z / (1.0 - z * z)) * z ** np.abs(k)
+    return (c / c.sum()).astype(np.float32)
+
+
+_PREFILTER = _bspline_prefilter_kernel()
+
+
+class CubicImage:
+    """An image prepared for cubic B-spline interpolation (Unser's interpolating spline).
+
+    The image is prefiltered so that the spline passes through every pixel value; sampling
+    then weights a 4x4 neighbourhood. Each element of ``rows`` packs the four coefficients
+    ``c[y, x-1 .. x+2]`` into 16 bytes, so a sample needs four gathers (one per row).
+    At the high-gradient observation points, bilinear interpolation misses the texture by
+    ~3.3 grey levels RMS on the synthetic pairs, this spline by ~1.5 (docs/algorithm.md).
+    """
+
+    __slots__ = ("rows", "height", "width", "stride")
+
+    def __init__(self, image: np.ndarray) -> None:
+        img = np.ascontiguousarray(image, dtype=np.float32)
+        h, w = img.shape
+        c = cv2.sepFilter2D(img, cv2.CV_32F, _PREFILTER, _PREFILTER, borderType=cv2.BORDER_REFLECT)
+        # Pad 1 column / row before and 2 after (edge values), so that every u in [0, w-1]
+        # and v in [0, h-1] has its 4x4 support inside.
+        p = cv2.copyMakeBorder(c, 1, 2, 1, 2, cv2.BORDER_REPLICATE)
+        hp, wp = p.shape
+        q = np.empty((hp, w, 4), np.float32)
+        for i in range(4):
+            q[..., i] = p[:, i:i + w]
+        self.rows = q.reshape(hp * w * 4).view(np.complex128)
+        self.height, self.width, self.stride = h, w, w
+
+    def sample(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Values (N,) float32 at pixels (u, v) (N,) float64, and validity (N,) bool."""
+        h, w = self.height, self.width
+        valid = (u >= 0.0) & (v >= 0.0) & (u <= w - 1.0) & (v <= h - 1.0)
+        u = np.where(valid, u, 0.0)
+        v = np.where(valid, v, 0.0)
+        x0 = np.minimum(u.astype(np.int32), w - 2)
+        y0 = np.minimum(v.astype(np.int32), h - 2)
+        wx = _bspline_weights((u - x0).astype(np.float32))
+        wy = _bspline_weights((v - y0).astype(np.float32))
+        idx = y0 * w + x0  # row y0 - 1 of the image is row y0 of the padded array
+        out = np.zeros(len(u), np.float32)
+        for j in range(4):
+            q = self.rows.take(idx + j * w).view(np.float32).reshape(-1, 4)
+            row = np.einsum("ij,ij->i", q, wx)
+            row *= wy[:, j]
+            out += row
+        return out, valid
+
+
+def _bspline_weights(t: np.ndarray) -> np.ndarray:
+    """Cubic B-spline weights (N, 4) of the taps -1, 0, 1, 2 at fractions ``t`` (N,) float32."""
+    s = 1.0 - t
+    t2 = t * t
+    t3 = t2 * t
+    out = np.empty((len(t), 4), np.float32)
+    out[:, 0] = s * s * s * np.float32(1.0 / 6.0)
+    out[:, 1] = np.float32(2.0 / 3.0) - t2 + np.float32(0.5) * t3
+    out[:, 3] = t3 * np.float32(1.0 / 6.0)
+    out[:, 2] = np.float32(1.0) - out[:, 0] - out[:, 1] - out[:, 3]
+    return out
 
 
 def robust_weights(r: np.ndarray, kind: str, *, huber_k: float, tukey_c: float,
@@ -277,7 +353,10 @@ def residuals(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float = 1
             v = Xc[:, 1] * iz
             v *= cam.fy
             v += cam.cy
-    vals, valid = sample_bilinear(image, u, v)
+    if isinstance(image, CubicImage):
+        vals, valid = image.sample(u, v)
+    else:
+        vals, valid = sample_bilinear(image, u, v)
     valid &= in_front
     if gain != 1.0 or bias != 0.0:
         vals -= np.float32(gain) * pts.intensity + np.float32(bias)
@@ -420,7 +499,10 @@ def estimate_motion(levels: Sequence[KeyLevel], pyramid: Sequence[np.ndarray],
     T = np.array(cur_from_key, dtype=np.float64)
     total = 0
     top = len(levels) - 1 if first_level is None else min(first_level, len(levels) - 1)
-    pyramid = [p if isinstance(p, QuadImage) else QuadImage(p) for p in pyramid[:top + 1]]
+    pyramid = [p if isinstance(p, (QuadImage, CubicImage)) else QuadImage(p)
+               for p in pyramid[:top + 1]]
+    if opts.interpolation == "cubic" and not isinstance(pyramid[0], CubicImage):
+        pyramid[0] = CubicImage(pyramid[0].image)
     res = None
     for lv in range(top, -1, -1):
         tol = opts.step_tolerance_px * (1.0 if lv == 0 else 10.0)

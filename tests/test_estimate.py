@@ -68,3 +68,76 @@ def test_packed_sampler_equals_plain_sampler():
     b, vb = sample_bilinear(QuadImage(img), u, v)
     assert np.array_equal(va, vb)
     np.testing.assert_array_equal(a[va], b[vb])
+
+
+def _interior(rng, n, lo, hi_u, hi_v):
+    return rng.uniform(lo, hi_u, n), rng.uniform(lo, hi_v, n)
+
+
+def test_cubic_sampler_passes_through_the_pixels():
+    """The prefilter makes the B-spline interpolate: at pixel centres it returns the pixels."""
+    from monovo_cli.estimate import CubicImage
+
+    rng = np.random.default_rng(7)
+    img = rng.uniform(0, 255, (60, 70)).astype(np.float32)
+    ys, xs = np.mgrid[0:60, 0:70]
+    vals, valid = CubicImage(img).sample(xs.ravel().astype(float), ys.ravel().astype(float))
+    assert valid.all()
+    # Interior: only the truncation of the prefilter (0.27^9 of the contrast); the borders
+    # are mirrored, so they interpolate too.
+    np.testing.assert_allclose(vals, img.ravel(), atol=0.05)
+
+
+@pytest.mark.parametrize("offset", [1e-3, 1.0 / 64, 0.5 + 1.0 / 1000, 0.999])
+def test_cubic_sampler_reproduces_cubic_polynomials(offset):
+    """A cubic B-spline reproduces polynomials up to degree 3 away from the borders."""
+    from monovo_cli.estimate import CubicImage
+
+    ys, xs = np.mgrid[0:60, 0:70].astype(np.float64)
+
+    def f(x, y):
+        return 20 + 1.5 * x - 0.8 * y + 0.02 * x * x + 0.01 * x * y - 1e-4 * y ** 3
+
+    img = f(xs, ys).astype(np.float32)
+    rng = np.random.default_rng(3)
+    u = rng.integers(12, 55, 200) + offset
+    v = rng.integers(12, 45, 200) + 0.7 * offset
+    vals, valid = CubicImage(img).sample(u, v)
+    assert valid.all()
+    np.testing.assert_allclose(vals, f(u, v), atol=2e-3)
+
+
+def test_cubic_sampler_beats_bilinear_on_fine_texture():
+    """On a band-limited texture with detail down to 3 px, the spline's error is < 1/4 of
+    bilinear interpolation's (the reason it samples the finest level)."""
+    from monovo_cli.estimate import CubicImage
+
+    rng = np.random.default_rng(11)
+    waves = [(rng.uniform(-1 / 3, 1 / 3), rng.uniform(-1 / 3, 1 / 3), rng.uniform(0, 2 * np.pi))
+             for _ in range(12)]
+
+    def f(x, y):
+        return 120 + sum(8 * np.cos(2 * np.pi * (a * x + b * y) + p) for a, b, p in waves)
+
+    ys, xs = np.mgrid[0:80, 0:90].astype(np.float64)
+    img = f(xs, ys).astype(np.float32)
+    u, v = _interior(rng, 3000, 12, 77, 67)
+    truth = f(u, v)
+    cub, _ = CubicImage(img).sample(u, v)
+    lin, _ = sample_bilinear(img, u, v)
+    e_cub = np.sqrt(np.mean((cub - truth) ** 2))
+    e_lin = np.sqrt(np.mean((lin - truth) ** 2))
+    assert e_lin > 1.0  # the texture is fine enough to matter
+    assert e_cub < 0.25 * e_lin
+
+
+def test_cubic_sampler_flags_points_outside_like_bilinear():
+    from monovo_cli.estimate import CubicImage
+
+    img = _linear_image()
+    u = np.array([-0.01, 0.0, 49.0, 49.01, 10.0, np.nan])
+    v = np.array([5.0, 5.0, 39.0, 5.0, -1.0, 3.0])
+    vals, valid = CubicImage(img).sample(u, v)
+    assert valid.tolist() == [False, True, True, False, False, False]
+    # At the borders the mirrored spline still reproduces the linear ramp.
+    np.testing.assert_allclose(vals[1:3], [3.0 * 0 - 2.0 * 5 + 7, 3.0 * 49 - 2.0 * 39 + 7], atol=0.05)
