@@ -44,7 +44,7 @@ import cv2
 import numpy as np
 
 from monovo_cli.geometry import se3_exp
-from monovo_cli.ground import LevelPoints
+from monovo_cli.ground import LevelPoints, bspline_coefficients
 
 
 @dataclass(frozen=True)
@@ -158,46 +158,28 @@ def sample_bilinear(image: np.ndarray | QuadImage, u: np.ndarray,
     return top + ay * (bot - top), valid
 
 
-_BSPLINE_POLE = np.sqrt(3.0) - 2.0
-
-
-def _bspline_prefilter_kernel(half: int = 8) -> np.ndarray:
-    """FIR form of the cubic B-spline interpolation prefilter (the inverse of [1, 4, 1]/6),
-    truncated at ``half`` taps each side (the pole's power 0.27^9 < 1e-5) and renormalised."""
-    z = _BSPLINE_POLE
-    k = np.arange(-half, half + 1)
-    c = (-6.0 * z / (1.0 - z * z)) * z ** np.abs(k)
-    return (c / c.sum()).astype(np.float32)
-
-
-_PREFILTER = _bspline_prefilter_kernel()
-
-
 class CubicImage:
     """An image prepared for cubic B-spline interpolation (Unser's interpolating spline).
 
-    The image is prefiltered so that the spline passes through every pixel value; sampling
-    then weights a 4x4 neighbourhood. Each element of ``rows`` packs the four coefficients
-    ``c[y, x-1 .. x+2]`` into 16 bytes, so a sample needs four gathers (one per row).
-    At the high-gradient observation points, bilinear interpolation misses the texture by
-    ~3.3 grey levels RMS on the synthetic pairs, this spline by ~1.5 (docs/algorithm.md).
+    The image is prefiltered so that the spline passes through every pixel value; a sample
+    then weights the 4x4 coefficients around it (one gather of 16 values per point).
+    At the high-gradient observation points of the synthetic pairs, bilinear interpolation
+    misses the texture by 3.3 grey levels RMS, this spline by 1.5 (docs/algorithm.md).
     """
 
-    __slots__ = ("rows", "height", "width", "stride")
+    __slots__ = ("coef", "height", "width", "stride", "_offsets")
 
     def __init__(self, image: np.ndarray) -> None:
         img = np.ascontiguousarray(image, dtype=np.float32)
         h, w = img.shape
-        c = cv2.sepFilter2D(img, cv2.CV_32F, _PREFILTER, _PREFILTER, borderType=cv2.BORDER_REFLECT)
+        c = bspline_coefficients(img)
         # Pad 1 column / row before and 2 after (edge values), so that every u in [0, w-1]
         # and v in [0, h-1] has its 4x4 support inside.
         p = cv2.copyMakeBorder(c, 1, 2, 1, 2, cv2.BORDER_REPLICATE)
-        hp, wp = p.shape
-        q = np.empty((hp, w, 4), np.float32)
-        for i in range(4):
-            q[..., i] = p[:, i:i + w]
-        self.rows = q.reshape(hp * w * 4).view(np.complex128)
-        self.height, self.width, self.stride = h, w, w
+        self.coef = p.ravel()
+        self.height, self.width, self.stride = h, w, w + 3
+        self._offsets = (np.arange(4, dtype=np.int32)[:, None] * np.int32(w + 3)
+                         + np.arange(4, dtype=np.int32)[None, :]).reshape(16, 1)
 
     def sample(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Values (N,) float32 at pixels (u, v) (N,) float64, and validity (N,) bool."""
@@ -209,26 +191,24 @@ class CubicImage:
         y0 = np.minimum(v.astype(np.int32), h - 2)
         wx = _bspline_weights((u - x0).astype(np.float32))
         wy = _bspline_weights((v - y0).astype(np.float32))
-        idx = y0 * w + x0  # row y0 - 1 of the image is row y0 of the padded array
-        out = np.zeros(len(u), np.float32)
-        for j in range(4):
-            q = self.rows.take(idx + j * w).view(np.float32).reshape(-1, 4)
-            row = np.einsum("ij,ij->i", q, wx)
-            row *= wy[:, j]
-            out += row
-        return out, valid
+        idx = y0 * np.int32(self.stride) + x0  # row y0 - 1 of the image: padded row y0
+        g = self.coef.take(idx[None, :] + self._offsets).reshape(4, 4, -1)
+        g *= wx[None]
+        rows = g.sum(axis=1)
+        rows *= wy
+        return rows.sum(axis=0), valid
 
 
 def _bspline_weights(t: np.ndarray) -> np.ndarray:
-    """Cubic B-spline weights (N, 4) of the taps -1, 0, 1, 2 at fractions ``t`` (N,) float32."""
+    """Cubic B-spline weights (4, N) of the taps -1, 0, 1, 2 at fractions ``t`` (N,) float32."""
     s = 1.0 - t
     t2 = t * t
     t3 = t2 * t
-    out = np.empty((len(t), 4), np.float32)
-    out[:, 0] = s * s * s * np.float32(1.0 / 6.0)
-    out[:, 1] = np.float32(2.0 / 3.0) - t2 + np.float32(0.5) * t3
-    out[:, 3] = t3 * np.float32(1.0 / 6.0)
-    out[:, 2] = np.float32(1.0) - out[:, 0] - out[:, 1] - out[:, 3]
+    out = np.empty((4, len(t)), np.float32)
+    out[0] = s * s * s * np.float32(1.0 / 6.0)
+    out[1] = np.float32(2.0 / 3.0) - t2 + np.float32(0.5) * t3
+    out[3] = t3 * np.float32(1.0 / 6.0)
+    out[2] = np.float32(1.0) - out[0] - out[1] - out[3]
     return out
 
 
@@ -499,10 +479,10 @@ def estimate_motion(levels: Sequence[KeyLevel], pyramid: Sequence[np.ndarray],
     T = np.array(cur_from_key, dtype=np.float64)
     total = 0
     top = len(levels) - 1 if first_level is None else min(first_level, len(levels) - 1)
-    pyramid = [p if isinstance(p, (QuadImage, CubicImage)) else QuadImage(p)
-               for p in pyramid[:top + 1]]
-    if opts.interpolation == "cubic" and not isinstance(pyramid[0], CubicImage):
-        pyramid[0] = CubicImage(pyramid[0].image)
+    cubic = opts.interpolation == "cubic"
+    pyramid = [p if isinstance(p, (QuadImage, CubicImage))
+               else CubicImage(p) if lv == 0 and cubic else QuadImage(p)
+               for lv, p in enumerate(pyramid[:top + 1])]
     res = None
     for lv in range(top, -1, -1):
         tol = opts.step_tolerance_px * (1.0 if lv == 0 else 10.0)

@@ -74,6 +74,42 @@ def sobel_gradient(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return gx, gy
 
 
+_BSPLINE_POLE = np.sqrt(3.0) - 2.0
+
+
+def _bspline_prefilter_kernel(half: int = 8) -> np.ndarray:
+    """FIR form of the cubic B-spline interpolation prefilter (the inverse of [1, 4, 1]/6),
+    truncated at ``half`` taps each side (the pole's power 0.27^9 < 1e-5) and renormalised."""
+    z = _BSPLINE_POLE
+    k = np.arange(-half, half + 1)
+    c = (-6.0 * z / (1.0 - z * z)) * z ** np.abs(k)
+    return (c / c.sum()).astype(np.float32)
+
+
+_PREFILTER = _bspline_prefilter_kernel()
+_SPLINE_VALUE = np.array([1.0, 4.0, 1.0], np.float32) / 6.0
+_SPLINE_SLOPE = np.array([-0.5, 0.0, 0.5], np.float32)
+
+
+def bspline_coefficients(image: np.ndarray) -> np.ndarray:
+    """Coefficients (H, W) float32 of the cubic B-spline that interpolates ``image``."""
+    return cv2.sepFilter2D(np.asarray(image, np.float32), cv2.CV_32F, _PREFILTER, _PREFILTER,
+                           borderType=cv2.BORDER_REFLECT)
+
+
+def spline_gradient(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Exact derivatives (gx, gy) at the pixels of the cubic B-spline interpolating ``image``.
+
+    The estimator samples the finest level with that spline, so the observation matrix
+    built from these gradients is the derivative of what it compares (Gauss-Newton then
+    converges in fewer iterations than with the Sobel estimate).
+    """
+    c = bspline_coefficients(image)
+    gx = cv2.sepFilter2D(c, cv2.CV_32F, _SPLINE_SLOPE, _SPLINE_VALUE, borderType=cv2.BORDER_REFLECT)
+    gy = cv2.sepFilter2D(c, cv2.CV_32F, _SPLINE_VALUE, _SPLINE_SLOPE, borderType=cv2.BORDER_REFLECT)
+    return gx, gy
+
+
 def estimate_noise_sigma(image: np.ndarray) -> float:
     """Standard deviation (grey levels) of white image noise, by Immerkaer's Laplacian-difference method."""
     k = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], dtype=np.float32)
@@ -156,13 +192,15 @@ def _even_spread(score: np.ndarray, cap: int, area: int, per_block: int = 4) -> 
 
 def select_points(image: np.ndarray, camera: PinholeCamera, plane: Plane, corners: np.ndarray,
                   *, level: int, threshold: float, max_points: int,
-                  mask: np.ndarray | None = None, border: int = 2) -> LevelPoints:
+                  mask: np.ndarray | None = None, border: int = 2,
+                  spline: bool = False) -> LevelPoints:
     """Observation points of one pyramid level (section 10.2.5, step 4).
 
     ``image`` (H, W) float32 is the keyframe at this level, ``camera`` its camera, ``corners``
     the model rectangle (4, 3) in the keyframe camera, ``mask`` (H, W) bool of usable pixels.
     Pixels inside the projected rectangle with ``|Sobel| > threshold`` are kept, at most
-    ``max_points`` of them spread evenly over the image.
+    ``max_points`` of them spread evenly over the image. Their gradients are the Sobel ones,
+    or with ``spline`` those of the cubic B-spline the estimator samples this level with.
     """
     h, w = image.shape
     gx, gy = sobel_gradient(image)
@@ -183,6 +221,8 @@ def select_points(image: np.ndarray, camera: PinholeCamera, plane: Plane, corner
     good = np.all(np.isfinite(X), axis=1) & (X[:, 2] > 1e-6)
     uv, X, ys, xs = uv[good], X[good], ys[good], xs[good]
     tri, bary = barycentric(X, corners)
+    if spline:
+        gx, gy = spline_gradient(image)
     return LevelPoints(level=level, camera=camera, uv=uv, X=X,
                        intensity=image[ys, xs].astype(np.float32),
                        grad=np.stack([gx[ys, xs], gy[ys, xs]], 1).astype(np.float32),

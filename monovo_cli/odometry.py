@@ -132,6 +132,7 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
     threshold = options.threshold if options.threshold is not None else default_threshold(sigma)
     corners = rectangle_corners(camera, plane, region)
     budget = point_budget(options, camera)
+    cubic = options.estimator.interpolation == "cubic"
     if not np.all(np.isfinite(corners)) or np.any(corners[:, 2] <= 0):
         raise TrackingError("the ground plane is not in front of the camera over the region")
     levels = []
@@ -142,7 +143,7 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
             m = cv2.resize(m.astype(np.uint8), (cam.width, cam.height),
                            interpolation=cv2.INTER_NEAREST).astype(bool)
         pts = select_points(pyr[lv], cam, plane, corners, level=lv, threshold=threshold,
-                            max_points=max(budget // (4 ** lv), 200), mask=m)
+                            max_points=max(budget // (4 ** lv), 200), mask=m, spline=lv == 0 and cubic)
         if lv == 0:
             require_points(pts, minimum=options.min_points, threshold=threshold)
         levels.append(KeyLevel.from_points(pts))

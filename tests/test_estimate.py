@@ -141,3 +141,29 @@ def test_cubic_sampler_flags_points_outside_like_bilinear():
     assert valid.tolist() == [False, True, True, False, False, False]
     # At the borders the mirrored spline still reproduces the linear ramp.
     np.testing.assert_allclose(vals[1:3], [3.0 * 0 - 2.0 * 5 + 7, 3.0 * 49 - 2.0 * 39 + 7], atol=0.05)
+
+
+def test_spline_gradient_is_the_derivative_of_the_sampled_spline():
+    """The observation matrix at the finest level uses the spline's own derivative: equal to
+    a finite difference of the cubic sampler, and exact on a cubic polynomial."""
+    from monovo_cli.estimate import CubicImage
+    from monovo_cli.ground import spline_gradient
+
+    ys, xs = np.mgrid[0:50, 0:60].astype(np.float64)
+    img = (0.02 * xs ** 2 - 0.01 * xs * ys + 1e-4 * ys ** 3 + 3 * xs).astype(np.float32)
+    gx, gy = spline_gradient(img)
+    sl = (slice(12, 38), slice(12, 48))
+    np.testing.assert_allclose(gx[sl], (0.04 * xs - 0.01 * ys + 3)[sl], atol=2e-3)
+    np.testing.assert_allclose(gy[sl], (-0.01 * xs + 3e-4 * ys ** 2)[sl], atol=2e-3)
+
+    rng = np.random.default_rng(4)
+    tex = rng.uniform(0, 255, (50, 60)).astype(np.float32)
+    gx, gy = spline_gradient(tex)
+    cub = CubicImage(tex)
+    u, v = rng.integers(10, 50, 100).astype(float), rng.integers(10, 40, 100).astype(float)
+    h = 1e-2
+    fdx = (cub.sample(u + h, v)[0] - cub.sample(u - h, v)[0]) / (2 * h)
+    fdy = (cub.sample(u, v + h)[0] - cub.sample(u, v - h)[0]) / (2 * h)
+    iu, iv = u.astype(int), v.astype(int)
+    np.testing.assert_allclose(gx[iv, iu], fdx, atol=0.05)
+    np.testing.assert_allclose(gy[iv, iu], fdy, atol=0.05)
