@@ -139,20 +139,21 @@ def sample_bilinear(image: np.ndarray | QuadImage, u: np.ndarray,
     valid = (u >= 0.0) & (v >= 0.0) & (u <= w - 1.0) & (v <= h - 1.0)
     u = np.where(valid, u, 0.0)
     v = np.where(valid, v, 0.0)
-    x0 = np.minimum(u.astype(np.int32), w - 2)
-    y0 = np.minimum(v.astype(np.int32), h - 2)
+    # Indices as intp: take() converts int32 indices first, which costs more than the gather.
+    x0 = np.minimum(u.astype(np.intp), w - 2)
+    y0 = np.minimum(v.astype(np.intp), h - 2)
     ax = (u - x0).astype(np.float32)
     ay = (v - y0).astype(np.float32)
     idx = y0 * w + x0
     if isinstance(image, QuadImage):
-        q = image.quad.take(idx).view(np.float32).reshape(-1, 4)
+        q = image.quad.take(idx, mode="wrap").view(np.float32).reshape(-1, 4)
         p00, p01, p10, p11 = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
     else:
         flat = image.ravel()
-        p00 = flat.take(idx)
-        p01 = flat.take(idx + 1)
-        p10 = flat.take(idx + w)
-        p11 = flat.take(idx + (w + 1))
+        p00 = flat.take(idx, mode="wrap")
+        p01 = flat.take(idx + 1, mode="wrap")
+        p10 = flat.take(idx + w, mode="wrap")
+        p11 = flat.take(idx + (w + 1), mode="wrap")
     top = p00 + ax * (p01 - p00)
     bot = p10 + ax * (p11 - p10)
     return top + ay * (bot - top), valid
@@ -178,8 +179,8 @@ class CubicImage:
         p = cv2.copyMakeBorder(c, 1, 2, 1, 2, cv2.BORDER_REPLICATE)
         self.coef = p.ravel()
         self.height, self.width, self.stride = h, w, w + 3
-        self._offsets = (np.arange(4, dtype=np.int32)[:, None] * np.int32(w + 3)
-                         + np.arange(4, dtype=np.int32)[None, :]).reshape(16, 1)
+        self._offsets = (np.arange(4, dtype=np.intp)[:, None] * (w + 3)
+                         + np.arange(4, dtype=np.intp)[None, :]).reshape(16, 1)
 
     def sample(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Values (N,) float32 at pixels (u, v) (N,) float64, and validity (N,) bool."""
@@ -187,12 +188,13 @@ class CubicImage:
         valid = (u >= 0.0) & (v >= 0.0) & (u <= w - 1.0) & (v <= h - 1.0)
         u = np.where(valid, u, 0.0)
         v = np.where(valid, v, 0.0)
-        x0 = np.minimum(u.astype(np.int32), w - 2)
-        y0 = np.minimum(v.astype(np.int32), h - 2)
+        x0 = np.minimum(u.astype(np.intp), w - 2)
+        y0 = np.minimum(v.astype(np.intp), h - 2)
         wx = _bspline_weights((u - x0).astype(np.float32))
         wy = _bspline_weights((v - y0).astype(np.float32))
-        idx = y0 * np.int32(self.stride) + x0  # row y0 - 1 of the image: padded row y0
-        g = self.coef.take(idx[None, :] + self._offsets).reshape(4, 4, -1)
+        idx = y0 * self.stride + x0  # row y0 - 1 of the image: padded row y0
+        # (indices are in range by construction; "wrap" only skips the bounds check)
+        g = self.coef.take(idx[None, :] + self._offsets, mode="wrap").reshape(4, 4, -1)
         g *= wx[None]
         rows = g.sum(axis=1)
         rows *= wy
@@ -401,9 +403,18 @@ def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float,
         if not np.all(np.isfinite(p)):
             break
         iterations += 1
+        T_new = T @ se3_exp(-p[:6])
+        if _probe_move(level, T, T_new) < step_tol:
+            # Converged: a step this small cannot raise the cost, so it is taken without
+            # sampling again (r and valid stay those of the previous pose, for statistics).
+            T = T_new
+            if npar == 8:
+                gain, bias = gain + p[6], bias + p[7]
+            break
         cost = _rho_mean(rv, scale, opts)
         for _halving in range(4):
-            T_new = T @ se3_exp(-p[:6])
+            if _halving:
+                T_new = T @ se3_exp(-p[:6])
             g_new = gain + (p[6] if npar == 8 else 0.0)
             b_new = bias + (p[7] if npar == 8 else 0.0)
             r_new, valid_new = residuals(level, image, T_new, g_new, b_new)
