@@ -48,19 +48,23 @@ def _tangent_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def refine_plane_and_motion(points: LevelPoints, image: np.ndarray, cur_from_key: np.ndarray,
                             plane: Plane, prior: PlanePrior, *, gain: float = 1.0,
                             bias: float = 0.0, options: EstimatorOptions | None = None,
-                            iterations: int = 8) -> tuple[np.ndarray, Plane, float, float]:
+                            iterations: int = 8,
+                            max_points: int = 8192) -> tuple[np.ndarray, Plane, float, float]:
     """Jointly refine ``cur_from_key`` (4x4) and the keyframe ``plane``'s normal.
 
     ``points`` are the keyframe's observation points at the level of ``image`` (the current
     frame, float32). Returns the refined ``(cur_from_key, plane, gain, bias)``; if the data
     do not support a refinement (too few points in view, a singular system) the inputs come
-    back unchanged.
+    back unchanged. At most ``max_points`` of the points are used (every k-th: they are
+    sorted by row, so the subset keeps their spread); two normal parameters need far fewer
+    than the motion estimate, and this keeps a re-anchor cheap.
     """
     opts = options or EstimatorOptions()
     cam = points.camera
     gx_img, gy_img = sobel_gradient(image)
-    rays = points.X / points.X[:, 2:3]
-    I_key = points.intensity.astype(np.float64)
+    step_k = max(1, -(-len(points) // max_points))
+    rays = points.X[::step_k] / points.X[::step_k, 2:3]
+    I_key = points.intensity[::step_k].astype(np.float64)
     T = np.array(cur_from_key, dtype=np.float64)
     n = np.array(plane.normal, dtype=np.float64)
     d = float(plane.distance)
@@ -98,14 +102,20 @@ def refine_plane_and_motion(points: LevelPoints, image: np.ndarray, cur_from_key
         a1 = gx * iz
         a2 = gy * iz
         a3 = -(a1 * Xc[:, 0] + a2 * Xc[:, 1]) * iz
-        A = np.stack([a1, a2, a3], 1)
         e1, e2 = _tangent_basis(n)
-        Jm = np.concatenate([A, np.cross(Xc, A)], axis=1)     # d r / d(left twist of T)
-        AR = A @ R                                            # d r / dX (keyframe coords)
-        s1 = -(X @ e1) / d
-        s2 = -(X @ e2) / d
-        Jn = np.stack([(AR * X).sum(1) * s1, (AR * X).sum(1) * s2], 1)
-        J = np.concatenate([Jm, Jn, -I_key[:, None], -np.ones((len(r), 1))], axis=1)
+        # Columns: d r / d(left twist of T) = (a, Xc x a); d r / d(normal along e1, e2)
+        # = (a^T R X) * (-(X . e) / d); then the brightness model (-I_key, -1).
+        J = np.empty((len(r), 10))
+        J[:, 0], J[:, 1], J[:, 2] = a1, a2, a3
+        J[:, 3] = Xc[:, 1] * a3 - Xc[:, 2] * a2
+        J[:, 4] = Xc[:, 2] * a1 - Xc[:, 0] * a3
+        J[:, 5] = Xc[:, 0] * a2 - Xc[:, 1] * a1
+        aRX = a1 * (Xc[:, 0] - t[0]) + a2 * (Xc[:, 1] - t[1]) + a3 * (Xc[:, 2] - t[2])
+        aRX /= -d
+        J[:, 6] = aRX * (X @ e1)
+        J[:, 7] = aRX * (X @ e2)
+        J[:, 8] = -I_key
+        J[:, 9] = -1.0
         rv = r[valid]
         wv, scale = robust_weights(rv.astype(np.float32), opts.robust, huber_k=opts.huber_k,
                                    tukey_c=opts.tukey_c)
