@@ -53,7 +53,7 @@ class EstimatorOptions:
 
     max_iterations: int = 30
     min_msd_decrease: float = 1e-6
-    step_tolerance_px: float = 1e-3
+    step_tolerance_px: float = 3e-3
     robust: str = "huber"            # "huber", "tukey" or "none"
     huber_k: float = 1.345
     tukey_c: float = 4.685
