@@ -178,15 +178,37 @@ def _tracking_options(f):
     return f
 
 
+class _MaxPoints(click.ParamType):
+    """--max-points: an integer >= 50, or 'all' (no cap)."""
+
+    name = "N|all"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, int):
+            return value
+        if str(value).strip().lower() == "all":
+            from monovo_cli.odometry import ALL_POINTS
+
+            return ALL_POINTS
+        try:
+            n = int(value)
+        except ValueError:
+            self.fail(f"expected an integer >= 50 or 'all', got {value!r}", param, ctx)
+        if n < 50:
+            self.fail(f"{n} is smaller than the minimum 50", param, ctx)
+        return n
+
+
 def _model_options(f):
     f = click.option("--reanchor-fraction", type=click.FloatRange(0.0, 1.0, max_open=True),
                      default=0.6, show_default=True,
                      help="Re-anchor when fewer of the keyframe's points than this stay in view.")(f)
     f = click.option("--robust", type=click.Choice(["huber", "tukey", "none"]), default="huber",
                      show_default=True, help="M-estimator of the IRLS weights.")(f)
-    f = click.option("--max-points", type=click.IntRange(min=50), default=None,
-                     help="Cap on observation points at full resolution, spread evenly "
-                          "[default: one per 16 pixels, at most 50000].")(f)
+    f = click.option("--max-points", type=_MaxPoints(), default=None, metavar="N|all",
+                     help="Cap on observation points at full resolution, spread evenly; 'all': "
+                          "every pixel above the threshold (the dense, most accurate setting, "
+                          "~3x slower) [default: one per 16 pixels, at most 50000].")(f)
     f = click.option("--threshold", type=click.FloatRange(min=0.0, min_open=True), default=None,
                      help="delta_1: Sobel magnitude (grey levels/px) an observation point needs "
                           "[default: 3x the noise's Sobel std, estimated from frame 0].")(f)

@@ -153,6 +153,9 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
     return Keyframe(index, np.array(world_from_key), plane, corners, tuple(levels), sigma, threshold)
 
 
+ALL_POINTS = 1 << 30  # max_points meaning "no cap" (`--max-points all`)
+
+
 def point_budget(options: TrackOptions, camera: PinholeCamera) -> int:
     """Observation points at full resolution: ``max_points`` or one per ``pixels_per_point`` px."""
     if options.max_points is not None:

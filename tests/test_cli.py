@@ -125,3 +125,23 @@ def test_module_entry_point():
     proc = subprocess.run([sys.executable, "-m", "monovo_cli", "--version"], capture_output=True,
                           text=True, timeout=60, cwd=Path(__file__).parent)
     assert proc.returncode == 0 and __version__ in proc.stdout
+
+
+def test_max_points_all_uses_every_pixel_above_the_threshold(tmp_path):
+    """`--max-points all` (the dense setting) keeps every candidate; the default caps them."""
+    from click.testing import CliRunner
+
+    from monovo_cli.cli import main
+    from monovo_cli.outputs import load_model
+
+    runner = CliRunner()
+    seq = tmp_path / "seq"
+    assert runner.invoke(main, ["synth", str(seq), "--preset", "drive", "--frames", "2",
+                                "--size", "160x120", "-q"]).exit_code == 0
+    counts = {}
+    for name, extra in (("default", []), ("all", ["--max-points", "all"])):
+        res = runner.invoke(main, ["init", str(seq), "-o", str(tmp_path / f"{name}.npz"), *extra])
+        assert res.exit_code == 0, res.output
+        counts[name] = len(load_model(tmp_path / f"{name}.npz")[2].levels[0].points)
+    assert counts["default"] == 160 * 120 // 16 or counts["default"] == 2000
+    assert counts["all"] > 3 * counts["default"]
