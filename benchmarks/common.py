@@ -186,12 +186,30 @@ def pair_scenes(pairs_dir: Path):
     return cam, tex, scenes
 
 
+def _points(value: str) -> int:
+    if value.strip().lower() == "all":
+        from monovo_cli.odometry import ALL_POINTS
+
+        return ALL_POINTS
+    return int(value)
+
+
 def add_points_option(ap) -> None:
-    """``--max-points N``: monovo's observation-point cap (default: the tool's own default)."""
-    ap.add_argument("--max-points", type=int, default=None,
+    """``--max-points N|all``: monovo's observation-point cap (default: the tool's own default)."""
+    ap.add_argument("--max-points", type=_points, default=None, metavar="N|all",
                     help="monovo's cap on observation points at full resolution [default: "
-                         "monovo's default, one per 16 px]; e.g. 400000 to use every pixel "
-                         "above the gradient threshold")
+                         "monovo's default, one per 16 px]; 'all': every pixel above the "
+                         "gradient threshold (monovo's dense setting, `--max-points all`)")
+
+
+def options_note(args) -> str:
+    """How monovo was run, for the tables' headers."""
+    mp = getattr(args, "max_points", None)
+    if mp is None:
+        return "default options"
+    from monovo_cli.odometry import ALL_POINTS
+
+    return f"default options but `--max-points {'all' if mp >= ALL_POINTS else mp}`"
 
 
 def track_options(args):

@@ -53,6 +53,7 @@ from benchmarks.common import (
     add_points_option,
     machine,
     one_core,
+    options_note,
     pair_scenes,
     track_options,
 )
@@ -142,7 +143,7 @@ def main() -> None:
     args = ap.parse_args()
     one_core()
     print(f"Machine: {machine()}\n")
-    print(scene_header(args.pairs, args.seed) + "\n")
+    print(scene_header(args.pairs, args.seed, options_note(args)) + "\n")
     infos = None
     t0 = time.perf_counter()
     for nv in args.noise_var:

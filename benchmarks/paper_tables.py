@@ -23,7 +23,15 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import add_points_option, axis_table, machine, motion_errors, one_core, track_options
+from benchmarks.common import (
+    add_points_option,
+    axis_table,
+    machine,
+    motion_errors,
+    one_core,
+    options_note,
+    track_options,
+)
 from monovo_cli.config import load_init
 from monovo_cli.frames import FrameSequence
 from monovo_cli.ground import Plane
@@ -78,7 +86,7 @@ def table(errs: np.ndarray, ok: np.ndarray) -> str:
     return "\n".join(lines)
 
 
-def scene_header(n_pairs: int, seed: int) -> str:
+def scene_header(n_pairs: int, seed: int, note: str = "default options") -> str:
     """The scene geometry of the pairs preset, from the values synth actually uses."""
     cam = default_camera(688, 544)
     return (f"Scene (`monovo synth --preset pairs`, seed {seed}): {n_pairs} pairs, 688x544 px, "
@@ -88,7 +96,7 @@ def scene_header(n_pairs: int, seed: int) -> str:
             f"camera x and y, random azimuth; motion T_0_1 with translation uniform in "
             f"+-{PAIR_MAX_TRANSLATION:g} m and rotation vector uniform in +-5 deg per axis, "
             "redrawn until frame 1 sees only ground. Gaussian noise of the stated variance on "
-            "both frames, then rounding to 8 bit. Tracked with default options, one core.")
+            f"both frames, then rounding to 8 bit. Tracked with {note}, one core.")
 
 
 def main() -> None:
@@ -101,7 +109,7 @@ def main() -> None:
     args = ap.parse_args()
     one_core()
     print(f"Machine: {machine()}\n")
-    print(scene_header(args.pairs, args.seed) + "\n")
+    print(scene_header(args.pairs, args.seed, options_note(args)) + "\n")
     summary = []
     for nv in args.noise_var:
         with tempfile.TemporaryDirectory() as tmp:

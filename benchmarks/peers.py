@@ -61,6 +61,7 @@ from benchmarks.common import (
     machine,
     motion_errors,
     one_core,
+    options_note,
     track_options,
 )
 from benchmarks.paper_tables import run_pairs
@@ -396,6 +397,7 @@ def main() -> None:
     one_core()
     cv2.setRNGSeed(0)  # RANSAC draws
     print(f"Machine: {machine()}; {load()} at the start\n")
+    print(f"monovo: {options_note(args)}.\n")
     check()
     if args.check:
         return
