@@ -202,6 +202,15 @@ def add_points_option(ap) -> None:
                          "gradient threshold (monovo's dense setting, `--max-points all`)")
 
 
+def add_frame0_option(ap) -> None:
+    """``--noisy-frame0``: noise on both frames of a pair instead of the paper's clean frame 0."""
+    ap.add_argument("--noisy-frame0", action="store_true",
+                    help="add the noise to frame 0 too [default: frame 0 noise-free, as in the "
+                         "paper, whose ground texture is exactly known; then only frame 1 is "
+                         "noisy, which is also what the Cramér–Rao bound of benchmarks.crb "
+                         "assumes]")
+
+
 def options_note(args) -> str:
     """How monovo was run, for the tables' headers."""
     mp = getattr(args, "max_points", None)

@@ -55,6 +55,7 @@ import numpy as np
 from benchmarks.common import (
     AXES,
     Stopwatch,
+    add_frame0_option,
     add_points_option,
     final_drift,
     load,
@@ -385,6 +386,7 @@ def check(n_pairs: int = 10) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_points_option(ap)
+    add_frame0_option(ap)
     ap.add_argument("--pairs", type=int, default=100, help="pairs (0: skip)")
     ap.add_argument("--pair-noise-var", type=float, default=10.0)
     ap.add_argument("--pair-seed", type=int, default=1, help="same default as paper_tables")
@@ -406,12 +408,15 @@ def main() -> None:
         if args.pairs:
             root = Path(tmp) / "pairs"
             errs, _, secs, cpu = run_pairs(root, args.pairs, args.pair_noise_var,
-                                           args.pair_seed, track_options(args))
+                                           args.pair_seed, track_options(args),
+                                           not args.noisy_frame0)
             pairs = sorted(p for p in root.iterdir() if p.name.startswith("pair_"))
             pair_res = [MethodResult("monovo", errs, float(secs.sum()), float(cpu.sum()), len(pairs))]
             pair_res += [peer_on_pairs(p, pairs) for p in (OrbPeer(), EccPeer())]
             print(f"### {args.pairs} pairs of the paper protocol (688x544, noise variance "
-                  f"{args.pair_noise_var:g}, seed {args.pair_seed}), mean absolute error\n")
+                  f"{args.pair_noise_var:g} on "
+                  f"{'both frames' if args.noisy_frame0 else 'frame 1 (frame 0 noise-free)'}, "
+                  f"seed {args.pair_seed}), mean absolute error\n")
             print("Time per pair: both frames in memory, each method processes both (monovo: "
                   "frame-0 model + estimate; ORB: features of both + match + RANSAC; ECC: "
                   "pyramids + alignment), plus the decomposition. One core.\n")

@@ -245,11 +245,14 @@ def main() -> None:
 @click.option("--max-translation", type=click.FloatRange(min=0.0), default=None,
               help="pairs: translations uniform in +-this per axis, m [default: 10 m at 100 m].")
 @click.option("--exposure", is_flag=True, help="Vary gain and bias from frame to frame.")
+@click.option("--clean-frame0", is_flag=True,
+              help="Frame 0 (of the drive, of each pair) without noise: the paper's synthetic "
+                   "experiment, where the ground's texture is exactly known.")
 @click.option("--overwrite", is_flag=True, help="Replace OUT if it exists.")
 @_common
 @click.pass_context
 def synth(ctx, out, preset, frames, size, noise_var, seed, texture, max_translation, exposure,
-          overwrite, quiet, verbose):
+          clean_frame0, overwrite, quiet, verbose):
     """Write a synthetic sequence with ground truth into OUT."""
     _setup(ctx, quiet, verbose)
     from monovo_cli import synth as synth_mod
@@ -277,7 +280,7 @@ def synth(ctx, out, preset, frames, size, noise_var, seed, texture, max_translat
     try:
         s = synth_mod.synthesize(out, preset=preset, frames=frames, size=wh, noise_var=noise_var,
                                  seed=seed, texture=texture, max_translation=max_translation,
-                                 exposure=exposure, progress=bar)
+                                 exposure=exposure, clean_frame0=clean_frame0, progress=bar)
     finally:
         bar.close()
     if not quiet:

@@ -612,7 +612,7 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
                size: tuple[int, int] | None = None, noise_var: float = 10.0, seed: int = 0,
                texture: Path | None = None, max_translation: float | None = None,
                max_rotation_deg: float = 5.0, exposure: bool = False, shadow: float = 0.0,
-               low_texture: bool = False,
+               low_texture: bool = False, clean_frame0: bool = False,
                progress: Callable[[int, int], None] | None = None) -> SynthSummary:
     """Write a synthetic sequence (``drive``) or set of 2-frame sequences (``pairs``).
 
@@ -626,7 +626,9 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
     a drive, independently per pair frame); written to ``photometric.csv``.
     ``shadow``: darken (x0.5) this fraction of the image's bottom rows in every frame, a
     shadow fixed to the camera like the rover's own. ``low_texture``: a smooth ground with
-    a quarter of the contrast and no fine detail.
+    a quarter of the contrast and no fine detail. ``clean_frame0``: frame 0 (of the drive,
+    of every pair) without noise, only rounded -- the paper's synthetic experiment, where the
+    ground's texture is exactly known; the other frames' noise is the same as without it.
     ``progress(done, total)`` is called after each drive frame / each pair.
     Raises InputError for bad arguments, OutputError if ``out_dir`` exists and is not empty
     or cannot be written.
@@ -697,6 +699,7 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
         "noise_var": float(noise_var), "max_translation": float(max_translation),
         "max_rotation_deg": float(max_rotation_deg), "exposure": bool(exposure),
         "texture": texture_desc, "shadow": float(shadow), "low_texture": bool(low_texture),
+        "clean_frame0": bool(clean_frame0),
         "texture_texels": [int(tex.shape[1]), int(tex.shape[0])],
         "metres_per_texel": metres_per_texel, "supersample": SUPERSAMPLE,
     }
@@ -749,6 +752,8 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
             if shadow > 0:
                 ground[int(round(height * (1.0 - shadow))):] *= np.float32(0.5)
             img = finish_frame(ground, noise_rng, float(noise_var), gain, bias)
+            if clean_frame0 and k == 0:  # (the noise was still drawn: frame 1's stays the same)
+                img = finish_frame(ground, noise_rng, 0.0, gain, bias)
             _write_png(frames_dir / f"frame_{k:06d}.png", img)
             if drive and progress is not None:
                 progress(k + 1, frames)

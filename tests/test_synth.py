@@ -476,3 +476,23 @@ def test_refuses_non_empty_or_non_directory_output(tmp_path):
     empty.mkdir()
     s = synth.synthesize(empty, frames=2, size=(32, 32))  # an empty directory is fine
     assert (empty / "init.yaml").is_file() and s.frames_per_sequence == 2
+
+
+def test_clean_frame0_removes_only_frame0_noise(tmp_path):
+    """--clean-frame0: frame 0 equals the noise-free render; frame 1 keeps the very noise it
+    has without the flag (the same seed draws the same noise)."""
+
+    kw = dict(preset="pairs", frames=2, size=SMALL, noise_var=25.0, seed=4)
+    synth.synthesize(tmp_path / "noisy", **kw)
+    synth.synthesize(tmp_path / "clean", clean_frame0=True, **kw)
+    synth.synthesize(tmp_path / "none", **{**kw, "noise_var": 0.0})
+
+    def frame(root, pair, k):
+        return cv2.imread(str(tmp_path / root / f"pair_{pair:04d}" / "frames" / f"frame_{k:06d}.png"),
+                          cv2.IMREAD_GRAYSCALE).astype(float)
+
+    for pair in range(2):
+        assert np.array_equal(frame("clean", pair, 0), frame("none", pair, 0))
+        assert np.array_equal(frame("clean", pair, 1), frame("noisy", pair, 1))
+        noise = frame("noisy", pair, 0) - frame("none", pair, 0)
+        assert 15.0 < noise.var() < 35.0
