@@ -186,6 +186,26 @@ def pair_scenes(pairs_dir: Path):
     return cam, tex, scenes
 
 
+def drive_arguments(doc: str | None):
+    """Parse the options of a one-drive benchmark: ``--frames --size --noise-var --seed``.
+
+    Returns ``(args, (width, height))`` with OpenCV set to one thread.
+    """
+    import argparse
+
+    import cv2
+
+    ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--frames", type=int, default=300)
+    ap.add_argument("--size", default="512x512")
+    ap.add_argument("--noise-var", type=float, default=10.0)
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+    cv2.setNumThreads(1)
+    w, h = (int(v) for v in args.size.split("x"))
+    return args, (w, h)
+
+
 def _points(value: str) -> int:
     if value.strip().lower() == "all":
         from monovo_cli.odometry import ALL_POINTS

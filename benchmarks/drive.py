@@ -9,7 +9,6 @@ distance travelled, the final heading error, lost/re-anchored frames and frames/
 
 from __future__ import annotations
 
-import argparse
 import os
 import tempfile
 from pathlib import Path
@@ -17,9 +16,8 @@ from pathlib import Path
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
-import cv2  # noqa: E402
 
-from benchmarks.common import final_drift, machine  # noqa: E402
+from benchmarks.common import drive_arguments, final_drift, machine  # noqa: E402
 from monovo_cli.odometry import TrackOptions  # noqa: E402
 from monovo_cli.outputs import read_motion_csv, read_tum  # noqa: E402
 from monovo_cli.runner import track_sequence  # noqa: E402
@@ -42,14 +40,7 @@ def run_drive(root: Path, frames: int, size: tuple[int, int], noise_var: float, 
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--frames", type=int, default=300)
-    ap.add_argument("--size", default="512x512")
-    ap.add_argument("--noise-var", type=float, default=10.0)
-    ap.add_argument("--seed", type=int, default=0)
-    args = ap.parse_args()
-    cv2.setNumThreads(1)
-    w, h = (int(v) for v in args.size.split("x"))
+    args, (w, h) = drive_arguments(__doc__)
     print(f"machine: {machine()}\n")
     with tempfile.TemporaryDirectory() as tmp:
         r = run_drive(Path(tmp), args.frames, (w, h), args.noise_var, args.seed)

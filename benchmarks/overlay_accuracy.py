@@ -15,15 +15,13 @@ trajectory.
 
 from __future__ import annotations
 
-import argparse
 import tempfile
 import time
 from pathlib import Path
 
-import cv2
 import numpy as np
 
-from benchmarks.common import machine
+from benchmarks.common import drive_arguments, machine
 from monovo_cli.config import load_init
 from monovo_cli.ground import Plane
 from monovo_cli.odometry import TrackOptions
@@ -114,15 +112,7 @@ def evo_check(est_path: Path, gt_path: Path) -> list[tuple[str, float, float]] |
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__,
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--frames", type=int, default=300)
-    ap.add_argument("--size", default="512x512")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--noise-var", type=float, default=10.0)
-    args = ap.parse_args()
-    cv2.setNumThreads(1)
-    w, h = (int(v) for v in args.size.split("x"))
+    args, (w, h) = drive_arguments(__doc__)
     print(f"machine: {machine()}\n")
     with tempfile.TemporaryDirectory() as tmp:
         r = measure(Path(tmp), args.frames, (w, h), args.seed, args.noise_var)
