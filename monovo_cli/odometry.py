@@ -154,6 +154,7 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
 
 
 ALL_POINTS = 1 << 30  # max_points meaning "no cap" (`--max-points all`)
+NOISE_CAP = 12.0  # grey levels: the most current-frame noise the loss checks allow for
 
 
 def point_budget(options: TrackOptions, camera: PinholeCamera) -> int:
@@ -211,6 +212,7 @@ class Odometry:
         self._velocity: np.ndarray | None = None  # cur_from_prev of the last good frame
         self._gain, self._bias = 1.0, 0.0
         self._recent_msd: deque[float] = deque(maxlen=15)
+        self._sigma = 1.0  # noise sigma of the current frame's differences (see _residual_sigma)
         self._pending_reanchor = False
         self._prev_image: np.ndarray | None = None
 
@@ -245,6 +247,7 @@ class Odometry:
         if not np.all(np.isfinite(image)) or float(image.std()) < 1e-3:
             return self._lost(index, timestamp, "constant or invalid image")
         pyr = build_pyramid(image, len(key.levels))
+        self._sigma = self._residual_sigma(key, image)
         searched = False
         first_level = self.options.predicted_top_level
         if prior_motion is not None:
@@ -324,16 +327,30 @@ class Odometry:
                            self._gain, self._bias, reason)
 
     # -- checks -----------------------------------------------------------------------
+    @staticmethod
+    def _residual_sigma(key: Keyframe, image: np.ndarray) -> float:
+        """Per-image noise sigma that the intensity differences of this frame carry.
+
+        A difference holds the keyframe's noise and the current frame's, which need not be
+        alike (a noise-free or well-lit keyframe, a darker, noisier frame later): the result
+        is sqrt((s_key^2 + s_cur^2) / 2), with s_cur measured on the central quarter of the
+        frame and capped at max(12, 3 s_key) grey levels so that a frame of pure noise does
+        not excuse itself.
+        """
+        h, w = image.shape
+        s_cur = estimate_noise_sigma(image[h // 4: h - h // 4, w // 4: w - w // 4])
+        s_cur = min(s_cur, max(NOISE_CAP, 3.0 * key.noise_sigma))
+        return float(np.sqrt(0.5 * (key.noise_sigma ** 2 + s_cur ** 2)))
+
     def _search(self, key: Keyframe, pyr: list[np.ndarray], guess: np.ndarray) -> np.ndarray:
         return coarse_search(key.levels[-1], pyr[-1], guess, options=self.options.estimator,
-                             noise_sigma=key.noise_sigma, gain=self._gain, bias=self._bias)
+                             noise_sigma=self._sigma, gain=self._gain, bias=self._bias)
 
-    @staticmethod
-    def _score(est: Estimate, key: Keyframe) -> float:
+    def _score(self, est: Estimate, key: Keyframe) -> float:  # noqa: ARG002
         """Share of the in-view points that agree with the estimate within the noise."""
         if est.residuals is None:
             return 0.0
-        return inlier_fraction(est.residuals, est.valid, key.noise_sigma) / max(est.valid_fraction, 1e-9)
+        return inlier_fraction(est.residuals, est.valid, self._sigma) / max(est.valid_fraction, 1e-9)
 
     def _failure(self, est: Estimate, key: Keyframe) -> str:
         """Why ``est`` cannot be trusted, or '' (the divergence checks)."""
@@ -343,9 +360,10 @@ class Odometry:
             return "ill-conditioned normal equations"
         if self._score(est, key) < self.options.min_inliers:
             return "intensity differences do not fit the motion"
-        # msd baseline: the recent good frames, or before there are any, the two images' noise
-        baseline = float(np.median(self._recent_msd)) if self._recent_msd \
-            else 2.0 * key.noise_sigma ** 2
+        # msd baseline: the recent good frames (but at least the two images' noise), or before
+        # there are any, the two images' noise
+        noise = 2.0 * self._sigma ** 2
+        baseline = max(float(np.median(self._recent_msd)), noise) if self._recent_msd else noise
         if est.msd > self.options.msd_factor * max(baseline, 1.0):
             return "mean squared difference rose sharply"
         if est.finest_iterations >= self.options.estimator.max_iterations:

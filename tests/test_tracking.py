@@ -61,6 +61,21 @@ def test_noise_free_pair_is_recovered_almost_exactly(tmp_path):
     assert np.degrees(np.linalg.norm(so3_log(err[:3, :3]))) < 2e-3
 
 
+def test_noisy_frame_after_a_clean_keyframe_is_not_lost(tmp_path):
+    """A noise-free keyframe (the paper's known texture) and a frame with noise variance 100:
+    the loss checks allow for the current frame's own noise, not only the keyframe's (they
+    used to call 30 of 30 such pairs lost at variance 100, and half of them at 50)."""
+    synthesize(tmp_path / "p", preset="pairs", frames=2, noise_var=100.0, seed=2,
+               clean_frame0=True)
+    for pair in sorted((tmp_path / "p").glob("pair_*")):
+        res = _run(pair)
+        _, gt, _ = read_motion_csv(pair / "groundtruth_motion.csv")
+        err = se3_inv(gt[0]) @ res[1].prev_from_cur
+        assert res[1].status == "ok", res[1].reason
+        assert np.linalg.norm(err[:3, 3]) < 0.03
+        assert np.degrees(np.linalg.norm(so3_log(err[:3, :3]))) < 0.015
+
+
 @pytest.fixture(scope="module")
 def drive(tmp_path_factory):
     root = tmp_path_factory.mktemp("drive")
