@@ -2,8 +2,8 @@
 
     python -m benchmarks.speed                         # 200-frame drives at 4 sizes, ~6 min
     python -m benchmarks.speed --sizes 512x512 --frames 100
-    python -m benchmarks.speed --memory                # also peak RSS over 500 and 5000 frames
-                                                       # (renders 5000 frames once: ~10 min more)
+    python -m benchmarks.speed --memory                # only peak RSS over 500 and 5000 frames
+                                                       # (renders 5000 frames once: ~10 min)
 
 For each size a ``monovo synth --preset drive`` sequence (noise variance 10, seed 0) is
 rendered (not timed), then, on one core (OpenCV, BLAS and OpenMP on one thread):
@@ -213,7 +213,8 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=200, help="frames per drive")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--no-profile", action="store_true", help="skip the per-stage profile")
-    ap.add_argument("--memory", action="store_true", help="peak RSS over --memory-frames frames")
+    ap.add_argument("--memory", action="store_true",
+                    help="only the peak RSS over --memory-frames frames (no speed tables)")
     ap.add_argument("--memory-frames", type=int, nargs="+", default=[500, 5000])
     args = ap.parse_args()
     one_core()
@@ -221,7 +222,7 @@ def main() -> None:
     speed_rows, stage_cols = [], []
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)
-        for size in args.sizes:
+        for size in ([] if args.memory else args.sizes):
             w, h = (int(v) for v in size.split("x"))
             seq = tmp / f"drive_{size}"
             synthesize(seq, preset="drive", frames=args.frames, size=(w, h), noise_var=10.0,
@@ -236,6 +237,13 @@ def main() -> None:
             print(f"({size} done)", file=sys.stderr)
         mem_rows = memory(tmp, args.memory_frames, args.seed) if args.memory else None
 
+    if speed_rows:
+        print_speed(args, speed_rows, stage_cols)
+    if mem_rows is not None:
+        print_memory(mem_rows)
+
+
+def print_speed(args, speed_rows, stage_cols) -> None:
     print(f"### Frames/s on one core ({args.frames}-frame drives, noise variance 10, seed "
           f"{args.seed}); wall clock, CPU time of this process in brackets\n")
     print("| size | end to end, whole call | end to end, per frame (wall) | estimator only | "
@@ -261,15 +269,16 @@ def main() -> None:
         for size, _, top, _ in stage_cols:
             print(f"\nTop functions by own time at {size}: "
                   + ", ".join(f"{name} {100 * s:.1f} %" for name, s in top))
-    if mem_rows is not None:
-        print("\n### Peak memory of `monovo track` (512x512, one core, child process)\n")
-        print("| frames | peak RSS (MB) | wall time (s) | frames/s |")
-        print("| --- | --- | --- | --- |")
-        for n, rss, secs in mem_rows:
-            print(f"| {n} | {rss:.1f} | {secs:.1f} | {n / secs:.1f} |")
-        growth = 100 * (mem_rows[-1][1] / mem_rows[0][1] - 1)
-        print(f"\nPeak RSS over {mem_rows[-1][0]} frames vs {mem_rows[0][0]}: {growth:+.1f} %")
 
+
+def print_memory(mem_rows) -> None:
+    print("\n### Peak memory of `monovo track` (512x512, one core, child process)\n")
+    print("| frames | peak RSS (MB) | wall time (s) | frames/s |")
+    print("| --- | --- | --- | --- |")
+    for n, rss, secs in mem_rows:
+        print(f"| {n} | {rss:.1f} | {secs:.1f} | {n / secs:.1f} |")
+    growth = 100 * (mem_rows[-1][1] / mem_rows[0][1] - 1)
+    print(f"\nPeak RSS over {mem_rows[-1][0]} frames vs {mem_rows[0][0]}: {growth:+.1f} %")
 
 if __name__ == "__main__":
     main()
