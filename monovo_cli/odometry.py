@@ -264,7 +264,7 @@ class Odometry:
             retry = estimate_motion(key.levels, pyr, self._search(key, pyr, guess),
                                     options=self.options.estimator, gain=self._gain,
                                     bias=self._bias)
-            if self._score(retry, key) > self._score(est, key):
+            if self._score(retry) > self._score(est):
                 est = retry
             reason = self._failure(est, key)
         if not reason:
@@ -288,8 +288,8 @@ class Odometry:
         plane_cur = key.plane.in_frame(cur_from_key)
         if reanchor and self.options.refine_plane and key.index != index:
             # The joint refinement gives the next keyframe its plane (in this camera); the
-            # pose keeps the fixed-plane estimate, whose per-frame error is smaller (the
-            # free normal adds variance: rz 5.1e-4 -> 4.3e-4 deg per frame, 1000-frame drive).
+            # pose keeps the fixed-plane estimate, whose error is smaller (the free normal
+            # adds variance to the joint solution's motion).
             joint_from_key, plane_key, gain, bias = refine_plane_and_motion(
                 key.levels[0].points, pyr[0], cur_from_key, key.plane, self._prior,
                 gain=gain, bias=bias, options=self.options.estimator, iterations=4)
@@ -346,7 +346,7 @@ class Odometry:
         return coarse_search(key.levels[-1], pyr[-1], guess, options=self.options.estimator,
                              noise_sigma=self._sigma, gain=self._gain, bias=self._bias)
 
-    def _score(self, est: Estimate, key: Keyframe) -> float:  # noqa: ARG002
+    def _score(self, est: Estimate) -> float:
         """Share of the in-view points that agree with the estimate within the noise."""
         if est.residuals is None:
             return 0.0
@@ -358,7 +358,7 @@ class Odometry:
             return "too few observation points in view"
         if not np.all(np.isfinite(est.covariance)) or est.condition > self.options.max_condition:
             return "ill-conditioned normal equations"
-        if self._score(est, key) < self.options.min_inliers:
+        if self._score(est) < self.options.min_inliers:
             return "intensity differences do not fit the motion"
         # msd baseline: the recent good frames (but at least the two images' noise), or before
         # there are any, the two images' noise
