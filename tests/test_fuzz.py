@@ -122,6 +122,22 @@ def _expect_input_error(exc: Exception, path: Path) -> None:
     event("rejected")
 
 
+_REJECTED = object()
+
+
+def _read(scratch: Path, name: str, data: bytes, reader):
+    """``reader`` on ``data`` written to ``scratch/name``: its result, or ``_REJECTED`` after
+    checking that the failure is a one-line InputError naming the file."""
+    path = _write(scratch, name, data)
+    try:
+        result = reader(path)
+    except Exception as exc:  # noqa: BLE001 - the property is about the type
+        _expect_input_error(exc, path)
+        return _REJECTED
+    event("read")
+    return result
+
+
 def _check_poses(poses: np.ndarray, n: int) -> None:
     assert poses.shape == (n, 4, 4) and np.all(np.isfinite(poses))
     R = poses[:, :3, :3]
@@ -136,13 +152,10 @@ def _check_poses(poses: np.ndarray, n: int) -> None:
 @FUZZ
 @given(data=_payload(_tum_text))
 def test_fuzz_read_tum(scratch, data):
-    path = _write(scratch, "t.tum", data)
-    try:
-        ts, poses = read_tum(path)
-    except Exception as exc:  # noqa: BLE001 - the property is about the type
-        _expect_input_error(exc, path)
+    result = _read(scratch, "t.tum", data, read_tum)
+    if result is _REJECTED:
         return
-    event("read")
+    ts, poses = result
     assert ts.ndim == 1 and len(ts) >= 1 and np.all(np.isfinite(ts))
     _check_poses(poses, len(ts))
 
@@ -150,13 +163,10 @@ def test_fuzz_read_tum(scratch, data):
 @FUZZ
 @given(data=_payload(_motion_text))
 def test_fuzz_read_motion_csv(scratch, data):
-    path = _write(scratch, "motion.csv", data)
-    try:
-        frames, poses, statuses = read_motion_csv(path)
-    except Exception as exc:  # noqa: BLE001
-        _expect_input_error(exc, path)
+    result = _read(scratch, "motion.csv", data, read_motion_csv)
+    if result is _REJECTED:
         return
-    event("read")
+    frames, poses, statuses = result
     assert frames.dtype.kind == "i" and len(statuses) == len(frames)
     _check_poses(poses, len(frames))
 
@@ -165,13 +175,10 @@ def test_fuzz_read_motion_csv(scratch, data):
 @FUZZ
 @given(data=_payload(_trajectory_text))
 def test_fuzz_read_trajectory_csv(scratch, data):
-    path = _write(scratch, "trajectory.csv", data)
-    try:
-        frames, ts, poses = read_trajectory_csv(path)
-    except Exception as exc:  # noqa: BLE001
-        _expect_input_error(exc, path)
+    result = _read(scratch, "trajectory.csv", data, read_trajectory_csv)
+    if result is _REJECTED:
         return
-    event("read")
+    frames, ts, poses = result
     assert frames.dtype.kind == "i" and len(set(frames.tolist())) == len(frames)
     assert np.all(np.isfinite(ts)) and len(ts) == len(frames)
     _check_poses(poses, len(frames))
@@ -181,13 +188,10 @@ def test_fuzz_read_trajectory_csv(scratch, data):
 @FUZZ
 @given(data=_payload(_motion_text))
 def test_fuzz_read_motion_stats(scratch, data):
-    path = _write(scratch, "motion.csv", data)
-    try:
-        stats = read_motion_stats(path)
-    except Exception as exc:  # noqa: BLE001
-        _expect_input_error(exc, path)
+    result = _read(scratch, "motion.csv", data, read_motion_stats)
+    if result is _REJECTED:
         return
-    event("read")
+    stats = result
     for frame, (status, msd) in stats.items():
         assert isinstance(frame, int) and isinstance(status, str) and math.isfinite(msd)
 
@@ -238,13 +242,10 @@ def _damaged(draw, original: bytes) -> bytes:
 def test_fuzz_load_model(scratch, model_bytes, data):
     blob = data.draw(st.one_of(_damaged(model_bytes), st.binary(max_size=200),
                                st.binary(max_size=60).map(lambda b: b"PK\x03\x04" + b)))
-    path = _write(scratch, "model.npz", blob)
-    try:
-        camera, region, key = load_model(path)
-    except Exception as exc:  # noqa: BLE001
-        _expect_input_error(exc, path)
+    result = _read(scratch, "model.npz", blob, load_model)
+    if result is _REJECTED:
         return
-    event("read")
+    camera, region, key = result
     assert camera.width > 0 and len(region) == 4 and len(key.levels) >= 1
 
 
