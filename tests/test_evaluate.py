@@ -186,21 +186,12 @@ def test_cli_eval_bad_input_is_one_line_exit_2(tum_pair, tmp_path):
 
 
 def test_ate_matches_evo(tum_pair):
-    """Cross-check against evo (GPL; a dev-only extra, skipped where it is not installed)."""
+    """Cross-check against evo (GPL; a dev-only extra, skipped where it is not installed),
+    through the same comparison benchmarks/overlay_accuracy.py prints."""
     pytest.importorskip("evo")
-    from evo.core import metrics, sync
-    from evo.tools import file_interface
+    from benchmarks.overlay_accuracy import evo_check
 
-    est_path, gt_path = tum_pair
-    ts_e, e = read_tum(est_path)
-    ts_g, g = read_tum(gt_path)
-    ours = evaluate(ts_e, e, ts_g, g, align=True)
-    for align, mine in ((False, ours.ate_rmse), (True, ours.ate_rmse_aligned)):
-        ref = file_interface.read_tum_trajectory_file(str(gt_path))
-        est = file_interface.read_tum_trajectory_file(str(est_path))
-        ref, est = sync.associate_trajectories(ref, est)
-        if align:
-            est.align(ref, correct_scale=False)
-        ape = metrics.APE(metrics.PoseRelation.translation_part)
-        ape.process_data((ref, est))
-        assert abs(ape.get_statistic(metrics.StatisticsType.rmse) - mine) < 1e-6
+    rows = evo_check(*tum_pair)
+    assert [r[0] for r in rows] == ["none", "SE(3) aligned"]
+    for _, mine, theirs in rows:
+        assert abs(theirs - mine) < 1e-6
