@@ -317,27 +317,32 @@ class Estimate:
     finest_iterations: int = 0
 
 
-def residuals(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float = 1.0,
-              bias: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """FD (eq. 10.2) at one level: ``I_cur(pi(T X_i)) - (gain I_i + bias)`` (N,) float32, validity (N,)."""
-    pts = level.points
-    cam = pts.camera
-    Xc = pts.X @ T[:3, :3].T
-    Xc += T[:3, 3]
+def project_in_front(cam, Xc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pixels (u, v) (N,) float64 of camera-frame points ``Xc`` (N, 3), NaN for points not in
+    front of the camera, and that in-front mask (N,) bool."""
     z = Xc[:, 2]
     in_front = z > 1e-9
     with np.errstate(divide="ignore", invalid="ignore"):
         if cam.has_distortion:
             uv = cam.project(np.where(in_front[:, None], Xc, np.nan))
-            u, v = uv[:, 0], uv[:, 1]
-        else:
-            iz = np.where(in_front, 1.0 / z, np.nan)
-            u = Xc[:, 0] * iz
-            u *= cam.fx
-            u += cam.cx
-            v = Xc[:, 1] * iz
-            v *= cam.fy
-            v += cam.cy
+            return uv[:, 0], uv[:, 1], in_front
+        iz = np.where(in_front, 1.0 / z, np.nan)
+    u = Xc[:, 0] * iz
+    u *= cam.fx
+    u += cam.cx
+    v = Xc[:, 1] * iz
+    v *= cam.fy
+    v += cam.cy
+    return u, v, in_front
+
+
+def residuals(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float = 1.0,
+              bias: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """FD (eq. 10.2) at one level: ``I_cur(pi(T X_i)) - (gain I_i + bias)`` (N,) float32, validity (N,)."""
+    pts = level.points
+    Xc = pts.X @ T[:3, :3].T
+    Xc += T[:3, 3]
+    u, v, in_front = project_in_front(pts.camera, Xc)
     if isinstance(image, CubicImage):
         vals, valid = image.sample(u, v)
     else:

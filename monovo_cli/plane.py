@@ -22,6 +22,7 @@ import numpy as np
 from monovo_cli.estimate import (
     EstimatorOptions,
     distortion_jacobian,
+    project_in_front,
     robust_weights,
     sample_bilinear,
 )
@@ -77,15 +78,9 @@ def refine_plane_and_motion(points: LevelPoints, image: np.ndarray, cur_from_key
         X = rays * (d / denom)[:, None]
         R, t = T[:3, :3], T[:3, 3]
         Xc = X @ R.T + t
+        u, v, front = project_in_front(cam, Xc)
         z = Xc[:, 2]
-        front = z > 1e-9
         iz = np.where(front, 1.0 / np.where(front, z, 1.0), 0.0)
-        if cam.has_distortion:
-            uv = cam.project(np.where(front[:, None], Xc, np.array([0.0, 0.0, 1.0])))
-            u, v = uv[:, 0], uv[:, 1]
-        else:
-            u = cam.fx * Xc[:, 0] * iz + cam.cx
-            v = cam.fy * Xc[:, 1] * iz + cam.cy
         vals, valid = sample_bilinear(image, u, v)
         gx, _ = sample_bilinear(gx_img, u, v)
         gy, _ = sample_bilinear(gy_img, u, v)
