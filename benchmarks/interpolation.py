@@ -1,4 +1,4 @@
-"""Why the finest level is sampled with a cubic B-spline: interpolation error at the points.
+"""Why the finest level is sampled bicubically: interpolation error at the points.
 
     python -m benchmarks.interpolation              # 20 noise-free pairs, ~1 min
     python -m benchmarks.interpolation --pairs 50
@@ -6,24 +6,26 @@
 Noise-free ``synth --preset pairs`` pairs (688x544, seed 1, the paper protocol's geometry).
 For each pair the keyframe's finest-level observation points (default budget, and every
 pixel above the threshold) are moved with the *true* motion into frame 1 and frame 1 is
-sampled there, bilinearly and with the cubic B-spline; what differs from the point's
-frame-0 intensity is what the interpolation (and the renderer's view-dependent pixel
-filtering) gets wrong -- a model error the estimator cannot tell from noise. Printed: its
-RMS per method and point set. Then each pair is tracked with both interpolations (default
-options otherwise) and the mean absolute motion errors are printed: the noise-free floor.
+sampled there by OpenCV's remap, bilinearly, bicubically (Keys) and with Lanczos-4; what
+differs from the point's frame-0 intensity is what the interpolation (and the renderer's
+view-dependent pixel filtering) gets wrong -- a model error the estimator cannot tell from
+noise. Printed: its RMS per method and point set, and the time per sample. Then each pair is
+tracked with each interpolation (default options otherwise) and the mean absolute motion
+errors are printed: the noise-free floor.
 """
 
 from __future__ import annotations
 
 import argparse
 import tempfile
+import time
 from pathlib import Path
 
 import numpy as np
 
 from benchmarks.common import AXES, axis_table, machine, motion_errors, one_core
 from monovo_cli.config import load_init
-from monovo_cli.estimate import CubicImage, EstimatorOptions, residuals
+from monovo_cli.estimate import INTERPOLATION, EstimatorOptions, residuals
 from monovo_cli.frames import FrameSequence
 from monovo_cli.geometry import se3_inv
 from monovo_cli.ground import Plane
@@ -41,8 +43,9 @@ def main() -> None:
     one_core()
     print(f"Machine: {machine()}\n")
     sets = {"default points": None, "every pixel above the threshold": ALL_POINTS}
-    rms = {(s, m): [] for s in sets for m in ("bilinear", "cubic B-spline")}
-    errs = {"bilinear": [], "cubic B-spline": []}
+    rms = {(s, m): [] for s in sets for m in INTERPOLATION}
+    secs = {m: [0.0, 0] for m in INTERPOLATION}
+    errs = {m: [] for m in INTERPOLATION}
     counts = {s: 0 for s in sets}
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / "pairs"
@@ -58,22 +61,27 @@ def main() -> None:
                                      TrackOptions(max_points=cap))
                 level = key.levels[0]
                 counts[name] += len(level.points)
-                for method, image in (("bilinear", frames[1]), ("cubic B-spline", CubicImage(frames[1]))):
-                    r, valid = residuals(level, image, cur_from_key)
+                for method, flag in INTERPOLATION.items():
+                    t0 = time.perf_counter()
+                    r, valid = residuals(level, frames[1], cur_from_key, flag=flag)
+                    secs[method][0] += time.perf_counter() - t0
+                    secs[method][1] += len(r)
                     rms[(name, method)].append(r[valid].astype(np.float64))
-            for method, interp in (("bilinear", "linear"), ("cubic B-spline", "cubic")):
-                opts = TrackOptions(estimator=EstimatorOptions(interpolation=interp))
+            for method in INTERPOLATION:
+                opts = TrackOptions(estimator=EstimatorOptions(interpolation=method))
                 res = list(track([(i, float(i), f) for i, f in enumerate(frames)], cfg.camera,
                                  plane, cfg.ground.region, opts))
                 errs[method].append(motion_errors(res[1].prev_from_cur, gt[0]))
     print(f"{args.pairs} noise-free pairs, 688x544, seed {args.seed}: frame-1 intensity at the "
           "true motion minus the point's frame-0 intensity, RMS over all points (grey levels)\n")
-    print("| points | mean points per pair | bilinear | cubic B-spline |")
-    print("| --- | --- | --- | --- |")
+    print("| points | mean points per pair | " + " | ".join(INTERPOLATION) + " |")
+    print("| --- | --- |" + " --- |" * len(INTERPOLATION))
     for name in sets:
         cells = [f"{np.sqrt(np.mean(np.concatenate(rms[(name, m)]) ** 2)):.2f}"
-                 for m in ("bilinear", "cubic B-spline")]
+                 for m in INTERPOLATION]
         print(f"| {name} | {counts[name] // args.pairs} | " + " | ".join(cells) + " |")
+    print("| ns per point (warp + sample + difference) | – | "
+          + " | ".join(f"{1e9 * t / n:.1f}" for t, n in secs.values()) + " |")
     print(f"\nTracked (default options but the finest level's interpolation), mean absolute "
           f"error over the {args.pairs} pairs ({', '.join(AXES)}):\n")
     print(axis_table([(m, np.abs(np.array(e)).mean(0)) for m, e in errs.items()]))

@@ -17,8 +17,8 @@ rendered (not timed), then, on one core (OpenCV, BLAS and OpenMP on one thread):
   included, for the speed ratio;
 * **stages** -- a cProfile of the end-to-end run, each function's own time attributed to the
   nearest enclosing stage: decode (``frames.read_gray``/``decode_gray``), pyramid
-  (``pyramid.build_pyramid``), warp+sample (``estimate.residuals``, ``sample_bilinear``,
-  ``_probe_move``: transforming, projecting and interpolating the points), normal equations
+  (``pyramid.build_pyramid``), warp+sample (``estimate.residuals``, ``sample_at``,
+  ``warp_grid``, ``_probe_move``: the points' homography and OpenCV's remap), normal equations
   (the rest of ``estimate._solve_level``: the weighted products O^T W O, O^T W r, the solve),
   robust weights (``robust_weights``, ``_rho*``), keyframes (``odometry.build_keyframe``:
   point selection at re-anchoring) and other. Profiling slows Python-heavy code more than
@@ -59,10 +59,10 @@ TARGET_FPS = {"256x256": 150.0, "512x512": 50.0, "1024x1024": 12.0}  # issue 5, 
 STAGES = {
     "read_gray": "decode", "decode_gray": "decode",
     "build_pyramid": "pyramid",
-    "residuals": "warp+sample", "sample_bilinear": "warp+sample", "_probe_move": "warp+sample",
+    "residuals": "warp+sample", "sample_at": "warp+sample", "warp_grid": "warp+sample",
+    "_probe_move": "warp+sample",
     "_solve_level": "normal equations",
-    "robust_weights": "robust weights", "_rho_mean": "robust weights", "_rho": "robust weights",
-    "_robust_cost": "robust weights", "_robust_cost_at": "robust weights",
+    "robust_weights": "robust weights", "_rho_sum": "robust weights", "mad_scale": "robust weights",
     "build_keyframe": "keyframes",
 }
 STAGE_ORDER = ("decode", "pyramid", "warp+sample", "normal equations", "robust weights",

@@ -26,10 +26,19 @@ iteration solves the weighted normal equations (eq. 10.21 with robust weights W)
 and composes on SE(3): T <- T exp(-xi^). Iterations stop when the mean squared
 difference (eq. 10.3) falls by less than delta_2 (relative), the update moves the points
 by less than ``step_tolerance_px``, or it rises (the step is then halved, then refused).
-This runs coarse to fine over an image pyramid.
+This runs coarse to fine over an image pyramid. O^T W O is formed once per level (with the
+level's first weights; the fixed point O^T W FD = 0 is the same) and O^T W FD every
+iteration.
 
-Beyond the paper: the finest level is sampled with the interpolating cubic B-spline (not
-bilinearly) and its rows o_i use the spline's own derivative at the keyframe pixels for g;
+The warp is exact: the points lie on the keyframe's plane n.X = d, so a keyframe pixel x
+moves to K (R + t n^T / d) K^-1 x, the plane's homography, applied to all points in one
+OpenCV call (a camera with lens distortion moves and projects the 3-D points instead).
+The current frame is then sampled there by OpenCV's remap: bicubically at the finest level
+(Keys' kernel; bilinear interpolation misses fine texture by twice as much, see
+``benchmarks/interpolation.py``), bilinearly at the coarser ones.
+
+Beyond the paper: the rows o_i use the interpolating cubic B-spline's derivative at the
+keyframe pixels for g (``ground.spline_gradient``);
 an affine brightness model ``I_cur ~ gain I_key + bias`` is estimated
 jointly (two more columns ``(I_i, 1)`` in O, section "photometric" of docs/algorithm.md),
 the weights W come from a Huber (or Tukey) M-estimator with the scale from the residuals'
@@ -46,7 +55,7 @@ import cv2
 import numpy as np
 
 from monovo_cli.geometry import se3_exp
-from monovo_cli.ground import LevelPoints, bspline_coefficients
+from monovo_cli.ground import LevelPoints
 
 
 @dataclass(frozen=True)
@@ -87,7 +96,8 @@ def observation_matrix(X: np.ndarray, grad: np.ndarray, fx: float, fy: float,
     a1 = gx * iz
     a2 = gy * iz
     a3 = -(a1 * x + a2 * y) * iz
-    return np.stack([a1, a2, a3, a3 * y - a2 * z, a1 * z - a3 * x, a2 * x - a1 * y], axis=1)
+    # Built as (6, N) (contiguous rows: KeyLevel stores it transposed) and returned as a view.
+    return np.stack([a1, a2, a3, a3 * y - a2 * z, a1 * z - a3 * x, a2 * x - a1 * y]).T
 
 
 def distortion_jacobian(camera, X: np.ndarray, eps: float = 1e-6) -> np.ndarray:
@@ -102,42 +112,13 @@ def distortion_jacobian(camera, X: np.ndarray, eps: float = 1e-6) -> np.ndarray:
     return J
 
 
-class QuadImage:
-    """A float32 image with each pixel's 2x2 neighbourhood packed into one 16-byte element.
-
-    Bilinear sampling then needs one gather per point instead of four.
-    """
-
-    __slots__ = ("image", "quad", "height", "width")
-
-    def __init__(self, image: np.ndarray) -> None:
-        img = np.ascontiguousarray(image, dtype=np.float32)
-        h, w = img.shape
-        p = np.empty((h + 1, w + 1), np.float32)
-        p[:h, :w] = img
-        p[h, :w] = img[-1]
-        p[:, w] = p[:, w - 1]
-        q = np.empty((h, w, 4), np.float32)
-        q[..., 0] = p[:-1, :-1]
-        q[..., 1] = p[:-1, 1:]
-        q[..., 2] = p[1:, :-1]
-        q[..., 3] = p[1:, 1:]
-        self.image = img
-        self.quad = q.reshape(h * w * 4).view(np.complex128)
-        self.height, self.width = h, w
-
-
-def sample_bilinear(image: np.ndarray | QuadImage, u: np.ndarray,
-                    v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def sample_bilinear(image: np.ndarray, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Exact bilinear interpolation of ``image`` (H, W) float32 at pixels (u, v) (N,) float64.
 
     Returns the values (N,) float32 and a validity mask (N,) bool (inside [0, W-1] x [0, H-1]).
     The fractional offsets are kept to float32 precision (no 1/32 px quantisation).
     """
-    if isinstance(image, QuadImage):
-        h, w = image.height, image.width
-    else:
-        h, w = image.shape
+    h, w = image.shape
     valid = (u >= 0.0) & (v >= 0.0) & (u <= w - 1.0) & (v <= h - 1.0)
     u = np.where(valid, u, 0.0)
     v = np.where(valid, v, 0.0)
@@ -147,74 +128,71 @@ def sample_bilinear(image: np.ndarray | QuadImage, u: np.ndarray,
     ax = (u - x0).astype(np.float32)
     ay = (v - y0).astype(np.float32)
     idx = y0 * w + x0
-    if isinstance(image, QuadImage):
-        q = image.quad.take(idx, mode="wrap").view(np.float32).reshape(-1, 4)
-        p00, p01, p10, p11 = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    else:
-        flat = image.ravel()
-        p00 = flat.take(idx, mode="wrap")
-        p01 = flat.take(idx + 1, mode="wrap")
-        p10 = flat.take(idx + w, mode="wrap")
-        p11 = flat.take(idx + (w + 1), mode="wrap")
+    flat = image.ravel()
+    p00 = flat.take(idx, mode="wrap")
+    p01 = flat.take(idx + 1, mode="wrap")
+    p10 = flat.take(idx + w, mode="wrap")
+    p11 = flat.take(idx + (w + 1), mode="wrap")
     top = p00 + ax * (p01 - p00)
     bot = p10 + ax * (p11 - p10)
     return top + ay * (bot - top), valid
 
 
-class CubicImage:
-    """An image prepared for cubic B-spline interpolation (Unser's interpolating spline).
+GRID_COLUMNS = 1024  # remap maps are (rows, GRID_COLUMNS): OpenCV limits a map side to 32767
 
-    The image is prefiltered so that the spline passes through every pixel value; a sample
-    then weights the 4x4 coefficients around it (one gather of 16 values per point).
-    At the high-gradient observation points of the synthetic pairs, bilinear interpolation
-    misses the texture by 3.25 grey levels RMS, this spline by 1.50
-    (``python -m benchmarks.interpolation``).
+INTERPOLATION = {"linear": cv2.INTER_LINEAR, "cubic": cv2.INTER_CUBIC, "lanczos4": cv2.INTER_LANCZOS4}
+
+
+# How far (px) each kernel reaches left/up and right/down of the sample's cell: a sample is
+# valid when every pixel it weights is inside the image. (Validity comes from the positions,
+# not from a NaN border: OpenCV 5's bicubic remap spreads a NaN border to neighbouring
+# outputs.)
+_REACH = {cv2.INTER_LINEAR: (0, 0), cv2.INTER_CUBIC: (1, 2), cv2.INTER_LANCZOS4: (3, 4)}
+
+
+def sample_at(image: np.ndarray, grid: np.ndarray, n: int, flag: int) -> tuple[np.ndarray, np.ndarray]:
+    """``image`` (H, W) float32 interpolated at the first ``n`` positions of ``grid``.
+
+    ``grid`` (rows, GRID_COLUMNS, 2) float32 holds pixel positions (u, v), row-major. Returns
+    the values (n,) float32 (0 where invalid) and the validity (n,) bool: every pixel the
+    kernel weights inside the image (points within a few pixels of the border are dropped).
     """
-
-    __slots__ = ("coef", "height", "width", "stride", "_offsets")
-
-    def __init__(self, image: np.ndarray) -> None:
-        img = np.ascontiguousarray(image, dtype=np.float32)
-        h, w = img.shape
-        c = bspline_coefficients(img)
-        # Pad 1 column / row before and 2 after (edge values), so that every u in [0, w-1]
-        # and v in [0, h-1] has its 4x4 support inside.
-        p = cv2.copyMakeBorder(c, 1, 2, 1, 2, cv2.BORDER_REPLICATE)
-        self.coef = p.ravel()
-        self.height, self.width, self.stride = h, w, w + 3
-        self._offsets = (np.arange(4, dtype=np.intp)[:, None] * (w + 3)
-                         + np.arange(4, dtype=np.intp)[None, :]).reshape(16, 1)
-
-    def sample(self, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Values (N,) float32 at pixels (u, v) (N,) float64, and validity (N,) bool."""
-        h, w = self.height, self.width
-        valid = (u >= 0.0) & (v >= 0.0) & (u <= w - 1.0) & (v <= h - 1.0)
-        u = np.where(valid, u, 0.0)
-        v = np.where(valid, v, 0.0)
-        x0 = np.minimum(u.astype(np.intp), w - 2)
-        y0 = np.minimum(v.astype(np.intp), h - 2)
-        wx = _bspline_weights((u - x0).astype(np.float32))
-        wy = _bspline_weights((v - y0).astype(np.float32))
-        idx = y0 * self.stride + x0  # row y0 - 1 of the image: padded row y0
-        # (indices are in range by construction; "wrap" only skips the bounds check)
-        g = self.coef.take(idx[None, :] + self._offsets, mode="wrap").reshape(4, 4, -1)
-        g *= wx[None]
-        rows = g.sum(axis=1)
-        rows *= wy
-        return rows.sum(axis=0), valid
+    lo, hi = _REACH[flag]
+    h, w = image.shape
+    inside = cv2.inRange(grid, (lo, lo), (w - 1 - hi, h - 1 - hi)).reshape(-1)[:n]
+    vals = cv2.remap(image, grid, None, flag,
+                     borderMode=cv2.BORDER_REPLICATE).reshape(-1)[:n]
+    valid = inside != 0
+    vals *= valid
+    return vals, valid
 
 
-def _bspline_weights(t: np.ndarray) -> np.ndarray:
-    """Cubic B-spline weights (4, N) of the taps -1, 0, 1, 2 at fractions ``t`` (N,) float32."""
-    s = 1.0 - t
-    t2 = t * t
-    t3 = t2 * t
-    out = np.empty((4, len(t)), np.float32)
-    out[0] = s * s * s * np.float32(1.0 / 6.0)
-    out[1] = np.float32(2.0 / 3.0) - t2 + np.float32(0.5) * t3
-    out[3] = t3 * np.float32(1.0 / 6.0)
-    out[2] = np.float32(1.0) - out[0] - out[1] - out[3]
+def pixel_grid(u: np.ndarray, v: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+    """Positions (u, v) (N,) packed into a remap grid (rows, GRID_COLUMNS, 2) float32.
+
+    The padding, and positions that are not finite, sit far outside every image (invalid).
+    """
+    n = len(u)
+    rows = max(1, -(-n // GRID_COLUMNS))
+    if out is None:
+        out = np.empty((rows, GRID_COLUMNS, 2), np.float32)
+    flat = out.reshape(-1, 2)
+    flat[:n, 0] = u
+    flat[:n, 1] = v
+    flat[n:] = -1e6
+    np.nan_to_num(flat, copy=False, nan=-1e6, posinf=-1e6, neginf=-1e6)
     return out
+
+
+MAD_SAMPLES = 20000  # the robust scale's median is taken over at most about this many residuals
+
+
+def mad_scale(r: np.ndarray, valid: np.ndarray | None = None) -> float:
+    """Robust scale of residuals ``r`` (N,) (at ``valid``): 1.4826 x median |r|, over an evenly
+    strided subset of about MAD_SAMPLES when N is larger (the scale only sets the weights' knee)."""
+    step = max(1, len(r) // MAD_SAMPLES)
+    sub = r[::step] if valid is None else r[::step][valid[::step]]
+    return max(1.4826 * float(np.median(np.abs(sub))), 1e-3) if len(sub) else 1e-3
 
 
 def robust_weights(r: np.ndarray, kind: str, *, huber_k: float, tukey_c: float,
@@ -223,7 +201,7 @@ def robust_weights(r: np.ndarray, kind: str, *, huber_k: float, tukey_c: float,
     if len(r) == 0:
         return np.ones(0, np.float32), 0.0
     if scale is None:
-        scale = max(1.4826 * float(np.median(np.abs(r))), 1e-3)
+        scale = mad_scale(r)
     if kind == "none":
         return np.ones(len(r), np.float32), scale
     a = np.abs(r) * np.float32(1.0 / scale)
@@ -237,11 +215,10 @@ def robust_weights(r: np.ndarray, kind: str, *, huber_k: float, tukey_c: float,
     return w.astype(np.float32, copy=False), scale
 
 
-def _rho_mean(r: np.ndarray, scale: float, opts: EstimatorOptions) -> float:
-    """Mean robust cost of residuals ``r`` at a fixed ``scale``."""
-    if len(r) == 0:
-        return float("inf")
-    a = np.abs(r) * np.float32(1.0 / scale)
+def _rho_sum(r: np.ndarray, scale: float, opts: EstimatorOptions) -> float:
+    """Total robust cost of residuals ``r`` at a fixed ``scale`` (rho(0) = 0)."""
+    a = np.abs(r)
+    a *= np.float32(1.0 / scale)
     if opts.robust == "huber":
         m = np.minimum(a, np.float32(opts.huber_k))
         rho = m * (a - 0.5 * m)  # 0.5 a^2 inside k, k a - 0.5 k^2 outside
@@ -251,7 +228,7 @@ def _rho_mean(r: np.ndarray, scale: float, opts: EstimatorOptions) -> float:
         rho = (c * c / 6.0) * (1.0 - q ** 3)
     else:
         rho = 0.5 * a * a
-    return float(np.mean(rho, dtype=np.float64))
+    return float(np.sum(rho, dtype=np.float64))
 
 
 @dataclass(frozen=True)
@@ -260,35 +237,73 @@ class KeyLevel:
 
     ``J`` (N, 8) float32 holds the geometric rows o_i (grey levels per m / per rad) and the
     photometric columns (I_i, 1); ``probes`` (4, 3) are the extreme points, used to measure
-    how far an update moves the image.
+    how far an update moves the image. ``grid`` holds the points' keyframe pixels as a remap
+    grid (see ``pixel_grid``); ``plane_m`` (3,) is ``n / d`` of the plane they lie on
+    (``plane_m . X = 1``) and ``box_rays`` (4, 3) the rays K^-1 (u, v, 1) of the corners of
+    the points' bounding box in the keyframe image.
     """
 
     points: LevelPoints
-    J: np.ndarray
+    Jt: np.ndarray
     probes: np.ndarray
+    grid: np.ndarray
+    plane_m: np.ndarray
+    box_rays: np.ndarray
 
     @classmethod
     def from_points(cls, points: LevelPoints) -> KeyLevel:
         cam = points.camera
         D = distortion_jacobian(cam, points.X) if cam.has_distortion and len(points) else None
         O = observation_matrix(points.X, points.grad, cam.fx, cam.fy, D)
-        J = np.empty((len(points), 8), np.float32)
-        J[:, :6] = O
-        J[:, 6] = points.intensity
-        J[:, 7] = 1.0
+        Jt = np.empty((8, len(points)), np.float32)
+        Jt[:6] = O.T
+        Jt[6] = points.intensity
+        Jt[7] = 1.0
+        uv = points.uv
         if len(points):
-            uv = points.uv
-            ext = [int(np.argmin(uv[:, 0])), int(np.argmax(uv[:, 0])),
-                   int(np.argmin(uv[:, 1])), int(np.argmax(uv[:, 1]))]
-            probes = points.X[ext]
+            u, v = uv[:, 0], uv[:, 1]
+            probes = points.X[[int(np.argmin(u)), int(np.argmax(u)), int(np.argmin(v)),
+                               int(np.argmax(v))]]
+            u0, u1, v0, v1 = u.min(), u.max(), v.min(), v.max()
+            box_rays = cam.rays(np.array([[u0, v0], [u1, v0], [u1, v1], [u0, v1]]))
+            # The plane through the points (they were lifted onto one): X . m = 1.
+            step = max(1, len(points) // 2000)
+            m = np.linalg.lstsq(points.X[::step], np.ones(len(points.X[::step])), rcond=None)[0]
         else:
-            probes = np.zeros((0, 3))
-        return cls(points, J, probes)
+            probes = box_rays = np.zeros((0, 3))
+            m = np.zeros(3)
+        return cls(points, Jt, probes, pixel_grid(uv[:, 0], uv[:, 1]), m, box_rays)
+
+    @property
+    def J(self) -> np.ndarray:
+        """The rows (N, 8) (a view of ``Jt``, stored transposed for the weighted products)."""
+        return self.Jt.T
 
     @property
     def O(self) -> np.ndarray:
         """The paper's observation matrix (N, 6)."""
         return self.J[:, :6]
+
+    def warp_grid(self, T: np.ndarray) -> np.ndarray:
+        """Remap grid of the points' pixels in the current camera, ``T`` = cur_from_key 4x4.
+
+        A pinhole camera with every point in front maps keyframe pixels to current ones by
+        the plane's homography K (R + t m^T) K^-1 (applied by OpenCV in one pass); otherwise
+        (lens distortion, or points behind the camera) the points are moved and projected.
+        A point's current depth has the sign of (R_3 + t_z m) . ray, affine in its keyframe
+        pixel, so it is positive at every point when it is at the bounding box's corners.
+        """
+        cam = self.points.camera
+        R, t = T[:3, :3], T[:3, 3]
+        if not cam.has_distortion and len(self.box_rays) and \
+                float(np.min(self.box_rays @ (R[2] + t[2] * self.plane_m))) > 1e-9:
+            K = cam.K
+            H = K @ (R + np.outer(t, self.plane_m)) @ np.linalg.inv(K)
+            return cv2.perspectiveTransform(self.grid, H)
+        Xc = self.points.X @ R.T
+        Xc += t
+        u, v, _ = project_in_front(cam, Xc)
+        return pixel_grid(u, v)
 
 
 @dataclass(frozen=True)
@@ -337,21 +352,19 @@ def project_in_front(cam, Xc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.nd
 
 
 def residuals(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float = 1.0,
-              bias: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
-    """FD (eq. 10.2) at one level: ``I_cur(pi(T X_i)) - (gain I_i + bias)`` (N,) float32, validity (N,)."""
+              bias: float = 0.0, flag: int = cv2.INTER_LINEAR) -> tuple[np.ndarray, np.ndarray]:
+    """FD (eq. 10.2) at one level: ``I_cur(pi(T X_i)) - (gain I_i + bias)`` (N,) float32, validity (N,).
+
+    ``image`` (H, W) float32 is the current frame at the level, sampled with OpenCV
+    interpolation ``flag``; invalid points (out of view or behind the camera) get 0.
+    """
     pts = level.points
-    Xc = pts.X @ T[:3, :3].T
-    Xc += T[:3, 3]
-    u, v, in_front = project_in_front(pts.camera, Xc)
-    if isinstance(image, CubicImage):
-        vals, valid = image.sample(u, v)
-    else:
-        vals, valid = sample_bilinear(image, u, v)
-    valid &= in_front
+    vals, valid = sample_at(image, level.warp_grid(T), len(pts), flag)
     if gain != 1.0 or bias != 0.0:
         vals -= np.float32(gain) * pts.intensity + np.float32(bias)
     else:
         vals -= pts.intensity
+    vals *= valid
     return vals, valid
 
 
@@ -381,29 +394,39 @@ class _LevelResult:
     iterations: int
     r: np.ndarray
     valid: np.ndarray
+    H: np.ndarray | None = None  # the weighted normal matrix the level's steps used
 
 
 def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float, bias: float,
-                 opts: EstimatorOptions, step_tol: float, max_iterations: int) -> _LevelResult:
-    """Gauss-Newton / IRLS iterations at one pyramid level."""
+                 opts: EstimatorOptions, step_tol: float, max_iterations: int,
+                 flag: int = cv2.INTER_LINEAR) -> _LevelResult:
+    """Gauss-Newton / IRLS iterations at one pyramid level (``flag``: OpenCV interpolation).
+
+    Residuals are 0 at invalid points and weights are masked there, so every sum runs over
+    all points (no compressing copies); rho(0) = 0, so the mean cost needs no mask.
+    """
     npar = 8 if opts.photometric else 6
-    J = level.J if opts.photometric else level.J[:, :6]
-    r, valid = residuals(level, image, T, gain, bias)
-    n = len(r)
+    Jt = level.Jt[:npar]
+    r, valid = residuals(level, image, T, gain, bias, flag)
+    nv = np.count_nonzero(valid)
     iterations = 0
     min_valid = max(opts.min_valid_points, npar)
     scale = None  # the robust scale, from this level's first residuals (MAD)
+    H = None
     for _ in range(max_iterations):
-        rv = r[valid]
-        if len(rv) < min_valid:
+        if nv < min_valid:
             break
-        wv, scale = robust_weights(rv, opts.robust, huber_k=opts.huber_k, tukey_c=opts.tukey_c,
-                                   scale=scale)
-        w = np.zeros(n, np.float32)
-        w[valid] = wv
-        Jw = J * w[:, None]
-        H = (Jw.T @ J).astype(np.float64)
-        b = (Jw.T @ r).astype(np.float64)
+        if scale is None:
+            scale = mad_scale(r, valid)
+        w = robust_weights(r, opts.robust, huber_k=opts.huber_k, tukey_c=opts.tukey_c,
+                           scale=scale)[0]
+        w *= valid
+        if H is None:  # the level's first weights serve its later iterations too
+            Jw = Jt * w
+            H = (Jw @ Jt.T).astype(np.float64)
+            b = (Jw @ r).astype(np.float64)
+        else:
+            b = (Jt @ (w * r)).astype(np.float64)
         try:
             p = np.linalg.solve(H, b)
         except np.linalg.LinAlgError:
@@ -419,28 +442,31 @@ def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float,
             if npar == 8:
                 gain, bias = gain + p[6], bias + p[7]
             break
-        cost = _rho_mean(rv, scale, opts)
+        cost = _rho_sum(r, scale, opts) / nv
         for _halving in range(4):
             if _halving:
                 T_new = T @ se3_exp(-p[:6])
             g_new = gain + (p[6] if npar == 8 else 0.0)
             b_new = bias + (p[7] if npar == 8 else 0.0)
-            r_new, valid_new = residuals(level, image, T_new, g_new, b_new)
-            if np.count_nonzero(valid_new) >= min_valid and \
-                    _rho_mean(r_new[valid_new], scale, opts) <= cost * (1.0 + 1e-7):
+            r_new, valid_new = residuals(level, image, T_new, g_new, b_new, flag)
+            nv_new = np.count_nonzero(valid_new)
+            if nv_new >= min_valid and _rho_sum(r_new, scale, opts) / nv_new <= cost * (1.0 + 1e-7):
                 break
             p = 0.5 * p
         else:
             break
         move = _probe_move(level, T, T_new)
-        msd_old = float(np.mean(rv * rv, dtype=np.float64))
-        T, gain, bias, r, valid = T_new, g_new, b_new, r_new, valid_new
-        rn = r[valid]
-        msd_new = float(np.mean(rn * rn, dtype=np.float64))
-        rel = (msd_old - msd_new) / max(msd_old, 1e-12)
+        msd_old = _msd(r, nv)
+        T, gain, bias, r, valid, nv = T_new, g_new, b_new, r_new, valid_new, nv_new
+        rel = (msd_old - _msd(r, nv)) / max(msd_old, 1e-12)
         if move < step_tol or (0.0 <= rel < opts.min_msd_decrease and move < 10 * step_tol):
             break
-    return _LevelResult(T, gain, bias, iterations, r, valid)
+    return _LevelResult(T, gain, bias, iterations, r, valid, H)
+
+
+def _msd(r: np.ndarray, n_valid: int) -> float:
+    """Mean squared difference over the valid points of ``r`` (0 at the invalid ones)."""
+    return float(np.dot(r, r)) / n_valid if n_valid else float("inf")
 
 
 def inlier_fraction(r: np.ndarray, valid: np.ndarray, noise_sigma: float) -> float:
@@ -468,7 +494,7 @@ def coarse_search(level: KeyLevel, image: np.ndarray, cur_from_key: np.ndarray, 
     mismatch). A full-resolution threshold would call every hypothesis good at high noise.
     """
     best, best_score = np.array(cur_from_key, dtype=np.float64), -1.0
-    image = image if isinstance(image, QuadImage) else QuadImage(image)
+    image = np.ascontiguousarray(image, dtype=np.float32)
     contrast = float(np.std(level.points.intensity)) if len(level.points) else 1.0
     noise_sigma = max(noise_sigma * 0.273 ** level.points.level, 0.05 * contrast)
     for rz in roll_deg:
@@ -498,33 +524,36 @@ def estimate_motion(levels: Sequence[KeyLevel], pyramid: Sequence[np.ndarray],
     T = np.array(cur_from_key, dtype=np.float64)
     total = 0
     top = len(levels) - 1 if first_level is None else min(first_level, len(levels) - 1)
-    if opts.interpolation not in ("cubic", "linear"):
+    if opts.interpolation not in INTERPOLATION:
         raise ValueError(f"unknown interpolation {opts.interpolation!r}")
-    cubic = opts.interpolation == "cubic"
-    pyramid = [p if isinstance(p, (QuadImage, CubicImage))
-               else CubicImage(p) if lv == 0 and cubic else QuadImage(p)
-               for lv, p in enumerate(pyramid[:top + 1])]
+    fine_flag = INTERPOLATION[opts.interpolation]
     res = None
     for lv in range(top, -1, -1):
         tol = opts.step_tolerance_px * (1.0 if lv == 0 else 10.0)
-        res = _solve_level(levels[lv], pyramid[lv], T, gain, bias, opts, tol, opts.max_iterations)
+        res = _solve_level(levels[lv], np.ascontiguousarray(pyramid[lv], dtype=np.float32), T,
+                           gain, bias, opts, tol, opts.max_iterations,
+                           fine_flag if lv == 0 else cv2.INTER_LINEAR)
         T, gain, bias = res.T, res.gain, res.bias
         total += res.iterations
-    # Final statistics at the finest level, with the weights of the final residuals.
+    # Final statistics at the finest level: the normal matrix its steps used (weights of its
+    # first residuals) and the noise from the final residuals and their weights.
     npar = 8 if opts.photometric else 6
-    J = levels[0].J[:, :npar]
-    valid = res.valid
-    rv = res.r[valid]
-    nv = len(rv)
-    msd = float(np.mean(rv * rv, dtype=np.float64)) if nv else float("inf")
+    Jt = levels[0].Jt[:npar]
+    valid, r = res.valid, res.r
+    nv = int(np.count_nonzero(valid))
+    msd = _msd(r, nv)
     cov = np.full((6, 6), np.inf)
     cond = float("inf")
     if nv >= max(opts.min_valid_points, npar):
-        wv, _ = robust_weights(rv, opts.robust, huber_k=opts.huber_k, tukey_c=opts.tukey_c)
-        Jv = J[valid]
-        H = ((Jv * wv[:, None]).T @ Jv).astype(np.float64)
-        dof = max(float(wv.sum(dtype=np.float64)) - npar, 1.0)
-        sigma2 = float(np.sum(wv * rv * rv, dtype=np.float64)) / dof
+        w = robust_weights(r, opts.robust, huber_k=opts.huber_k, tukey_c=opts.tukey_c,
+                           scale=mad_scale(r, valid))[0]
+        w *= valid
+        H = res.H
+        if H is None:
+            Jw = Jt * w
+            H = (Jw @ Jt.T).astype(np.float64)
+        dof = max(float(w.sum(dtype=np.float64)) - npar, 1.0)
+        sigma2 = float(np.dot(w, r * r)) / dof
         d = np.sqrt(np.clip(np.diag(H), 1e-300, None))
         Hn = H / np.outer(d, d)
         try:

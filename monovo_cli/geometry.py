@@ -226,6 +226,9 @@ class PinholeCamera:
                 uv.reshape(-1, 1, 2), self.K, dist,
                 criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12),
             ).reshape(-1, 2)
-        else:
-            pts = np.stack([(uv[:, 0] - self.cx) / self.fx, (uv[:, 1] - self.cy) / self.fy], 1)
-        return np.concatenate([pts, np.ones((len(pts), 1))], axis=1)
+            return np.concatenate([pts, np.ones((len(pts), 1))], axis=1)
+        out = np.empty((len(uv), 3))
+        out[:, 0] = (uv[:, 0] - self.cx) / self.fx
+        out[:, 1] = (uv[:, 1] - self.cy) / self.fy
+        out[:, 2] = 1.0
+        return out

@@ -10,6 +10,7 @@ intersecting its viewing ray with the plane; it carries its intensity and gradie
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -50,8 +51,10 @@ class LevelPoints:
     """Observation points of one pyramid level, in the keyframe camera.
 
     ``uv`` (N, 2) float64 px of that level; ``X`` (N, 3) float64 m; ``intensity`` (N,)
-    float32 grey levels; ``grad`` (N, 2) float32 grey levels per px; ``tri`` (N,) int8 the
-    triangle (0 or 1) and ``bary`` (N, 3) float32 the barycentric coordinates on it.
+    float32 grey levels; ``grad`` (N, 2) float32 grey levels per px; ``corners`` (4, 3) the
+    model rectangle the points are glued to. ``tri`` (N,) int8 the triangle (0 or 1) and
+    ``bary`` (N, 3) float32 the barycentric coordinates on it are worked out when first
+    asked for (tracking never needs them; the saved model carries them).
     """
 
     level: int
@@ -60,11 +63,23 @@ class LevelPoints:
     X: np.ndarray
     intensity: np.ndarray
     grad: np.ndarray
-    tri: np.ndarray
-    bary: np.ndarray
+    corners: np.ndarray
 
     def __len__(self) -> int:
         return len(self.uv)
+
+    @cached_property
+    def _triangles(self) -> tuple[np.ndarray, np.ndarray]:
+        tri, bary = barycentric(self.X, self.corners)
+        return tri, bary.astype(np.float32)
+
+    @property
+    def tri(self) -> np.ndarray:
+        return self._triangles[0]
+
+    @property
+    def bary(self) -> np.ndarray:
+        return self._triangles[1]
 
 
 def sobel_gradient(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -218,15 +233,15 @@ def select_points(image: np.ndarray, camera: PinholeCamera, plane: Plane, corner
                           max(int(np.count_nonzero(inside)), 1))
     uv = np.stack([xs, ys], 1).astype(np.float64)
     X = plane.intersect(camera.rays(uv))
-    good = np.all(np.isfinite(X), axis=1) & (X[:, 2] > 1e-6)
-    uv, X, ys, xs = uv[good], X[good], ys[good], xs[good]
-    tri, bary = barycentric(X, corners)
+    good = X[:, 2] > 1e-6  # (rays have z = 1: a ray that misses the plane is NaN here)
+    if not np.all(good):
+        uv, X, ys, xs = uv[good], X[good], ys[good], xs[good]
     if spline:
         gx, gy = spline_gradient(image)
     return LevelPoints(level=level, camera=camera, uv=uv, X=X,
                        intensity=image[ys, xs].astype(np.float32),
                        grad=np.stack([gx[ys, xs], gy[ys, xs]], 1).astype(np.float32),
-                       tri=tri, bary=bary.astype(np.float32))
+                       corners=corners)
 
 
 def require_points(points: LevelPoints, *, minimum: int, threshold: float) -> None:

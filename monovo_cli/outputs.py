@@ -314,8 +314,8 @@ def load_model(path: Path):
         levels = []
         for lv in range(int(d["levels"])):
             pts = LevelPoints(lv, camera.scaled(lv), *(d[f"l{lv}_{n}"] for n in
-                                                       ("uv", "X", "intensity", "grad", "tri",
-                                                        "bary")))
+                                                       ("uv", "X", "intensity", "grad")),
+                              d["corners"])
             levels.append(KeyLevel.from_points(pts))
         key = Keyframe(0, np.eye(4), plane, d["corners"], tuple(levels), float(d["noise_sigma"]),
                        float(d["threshold"]))
