@@ -206,9 +206,9 @@ def _model_options(f):
     f = click.option("--robust", type=click.Choice(["huber", "tukey", "none"]), default="huber",
                      show_default=True, help="M-estimator of the IRLS weights.")(f)
     f = click.option("--max-points", type=_MaxPoints(), default=None, metavar="N|all",
-                     help="Cap on observation points at full resolution, spread evenly; 'all': "
-                          "every pixel above the threshold (the dense, most accurate setting, "
-                          "3-4.5x slower) [default: one per 16 pixels, at most 50000].")(f)
+                     help="Cap on observation points at full resolution (the strongest "
+                          "gradients, spread evenly); 'all': every pixel above the threshold "
+                          "[default: one per 2 pixels].")(f)
     f = click.option("--threshold", type=click.FloatRange(min=0.0, min_open=True), default=None,
                      help="delta_1: Sobel magnitude (grey levels/px) an observation point needs "
                           "[default: 3x the noise's Sobel std, estimated from frame 0].")(f)

@@ -49,9 +49,11 @@ class TrackOptions:
 
     ``threshold`` is the paper's delta_1 (Sobel magnitude, grey levels/px; None: from the
     keyframe's noise); ``max_points`` caps the finest level's observation points (None: one
-    per ``pixels_per_point`` pixels of the image, at most 50000; coarser levels get a quarter
-    per level). With a motion prediction, estimation starts at pyramid level
-    ``predicted_top_level`` instead of the top (the prediction is within a pixel or two).
+    per ``pixels_per_point`` pixels of the image, the strongest gradients spread evenly);
+    coarser levels, which only bring the estimate within reach of the finest, get one per
+    ``coarse_pixels_per_point`` full-resolution pixels (a quarter per level). With a motion
+    prediction, estimation starts at pyramid level ``predicted_top_level`` instead of the top
+    (the prediction is within a pixel or two).
     Re-anchor when fewer than ``reanchor_fraction`` of the keyframe's points stay in view
     or the model covers < ``min_footprint`` of the image.
     A frame is lost when fewer than ``min_inliers`` of its points agree within the noise,
@@ -63,7 +65,8 @@ class TrackOptions:
     levels: int | None = None
     threshold: float | None = None
     max_points: int | None = None
-    pixels_per_point: int = 16
+    pixels_per_point: int = 2
+    coarse_pixels_per_point: int = 16
     predicted_top_level: int = 2
     min_points: int = 50
     reanchor_fraction: float = 0.6
@@ -132,7 +135,8 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
     threshold = options.threshold if options.threshold is not None else default_threshold(sigma)
     corners = rectangle_corners(camera, plane, region)
     budget = point_budget(options, camera)
-    cubic = options.estimator.interpolation == "cubic"
+    coarse = min(budget, max(2000, camera.width * camera.height // options.coarse_pixels_per_point))
+    spline = options.estimator.interpolation != "linear"
     if not np.all(np.isfinite(corners)) or np.any(corners[:, 2] <= 0):
         raise TrackingError("the ground plane is not in front of the camera over the region")
     levels = []
@@ -143,7 +147,8 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
             m = cv2.resize(m.astype(np.uint8), (cam.width, cam.height),
                            interpolation=cv2.INTER_NEAREST).astype(bool)
         pts = select_points(pyr[lv], cam, plane, corners, level=lv, threshold=threshold,
-                            max_points=max(budget // (4 ** lv), 200), mask=m, spline=lv == 0 and cubic)
+                            max_points=max((budget if lv == 0 else coarse) // (4 ** lv), 200),
+                            mask=m, spline=lv == 0 and spline)
         if lv == 0:
             require_points(pts, minimum=options.min_points, threshold=threshold)
         levels.append(KeyLevel.from_points(pts))
@@ -161,7 +166,7 @@ def point_budget(options: TrackOptions, camera: PinholeCamera) -> int:
     """Observation points at full resolution: ``max_points`` or one per ``pixels_per_point`` px."""
     if options.max_points is not None:
         return int(options.max_points)
-    return int(min(50000, max(2000, camera.width * camera.height // options.pixels_per_point)))
+    return int(max(2000, camera.width * camera.height // options.pixels_per_point))
 
 
 def footprint(camera: PinholeCamera, corners_cur: np.ndarray) -> float:

@@ -143,5 +143,5 @@ def test_max_points_all_uses_every_pixel_above_the_threshold(tmp_path):
         res = runner.invoke(main, ["init", str(seq), "-o", str(tmp_path / f"{name}.npz"), *extra])
         assert res.exit_code == 0, res.output
         counts[name] = len(load_model(tmp_path / f"{name}.npz")[2].levels[0].points)
-    assert counts["default"] == 160 * 120 // 16 or counts["default"] == 2000
-    assert counts["all"] > 3 * counts["default"]
+    assert counts["default"] == 160 * 120 // 2  # one per 2 pixels: the texture has enough
+    assert counts["all"] > 1.2 * counts["default"]
