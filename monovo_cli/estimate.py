@@ -184,7 +184,7 @@ def pixel_grid(u: np.ndarray, v: np.ndarray, out: np.ndarray | None = None) -> n
     return out
 
 
-MAD_SAMPLES = 20000  # the robust scale's median is taken over at most about this many residuals
+MAD_SAMPLES = 5000  # the robust scale's median is taken over at most about this many residuals
 
 
 def mad_scale(r: np.ndarray, valid: np.ndarray | None = None) -> float:
@@ -435,7 +435,8 @@ def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float,
             break
         iterations += 1
         T_new = T @ se3_exp(-p[:6])
-        if _probe_move(level, T, T_new) < step_tol:
+        move = _probe_move(level, T, T_new)
+        if move < step_tol:
             # Converged: a step this small cannot raise the cost, so it is taken without
             # sampling again (r and valid stay those of the previous pose, for statistics).
             T = T_new
@@ -455,7 +456,8 @@ def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float,
             p = 0.5 * p
         else:
             break
-        move = _probe_move(level, T, T_new)
+        if _halving:
+            move = _probe_move(level, T, T_new)
         msd_old = _msd(r, nv)
         T, gain, bias, r, valid, nv = T_new, g_new, b_new, r_new, valid_new, nv_new
         rel = (msd_old - _msd(r, nv)) / max(msd_old, 1e-12)
@@ -481,12 +483,13 @@ def coarse_search(level: KeyLevel, image: np.ndarray, cur_from_key: np.ndarray, 
                   options: EstimatorOptions, noise_sigma: float, gain: float = 1.0,
                   bias: float = 0.0,
                   angles_deg: Sequence[float] = (-6.0, -3.0, 0.0, 3.0, 6.0),
-                  roll_deg: Sequence[float] = (-5.0, 0.0, 5.0)) -> np.ndarray:
+                  roll_deg: Sequence[float] = (-5.0, 0.0, 5.0), keep: int = 5) -> np.ndarray:
     """A start that survives large motions: try a grid of rotations at the top pyramid level.
 
     Each hypothesis ``exp(w) cur_from_key`` (rotations about the current camera's x and y by
-    ``angles_deg``, about z by ``roll_deg``) is refined with a few Gauss-Newton iterations at
-    this level; the one with the most inliers wins. Returns the winning ``cur_from_key``.
+    ``angles_deg``, about z by ``roll_deg``) gets two Gauss-Newton iterations at this level;
+    the ``keep`` with the most inliers get up to eight more, and the one with the most
+    inliers then wins. Returns the winning ``cur_from_key``.
 
     ``noise_sigma`` is the full-resolution noise; each pyramid level's 5-tap binomial
     smoothing divides white noise by ~3.7 (0.273 per level), so the inlier threshold is scaled
@@ -497,15 +500,19 @@ def coarse_search(level: KeyLevel, image: np.ndarray, cur_from_key: np.ndarray, 
     image = np.ascontiguousarray(image, dtype=np.float32)
     contrast = float(np.std(level.points.intensity)) if len(level.points) else 1.0
     noise_sigma = max(noise_sigma * 0.273 ** level.points.level, 0.05 * contrast)
+    first = []
     for rz in roll_deg:
         for rx in angles_deg:
             for ry in angles_deg:
                 w = np.radians([rx, ry, rz])
                 T0 = se3_exp(np.r_[0.0, 0.0, 0.0, w]) @ cur_from_key
-                res = _solve_level(level, image, T0, gain, bias, options, 1e-2, 8)
-                score = inlier_fraction(res.r, res.valid, noise_sigma)
-                if score > best_score:
-                    best, best_score = res.T, score
+                res = _solve_level(level, image, T0, gain, bias, options, 1e-2, 2)
+                first.append((inlier_fraction(res.r, res.valid, noise_sigma), len(first), res))
+    for _, _, res in sorted(first, key=lambda c: (-c[0], c[1]))[:keep]:
+        res = _solve_level(level, image, res.T, res.gain, res.bias, options, 1e-2, 8)
+        score = inlier_fraction(res.r, res.valid, noise_sigma)
+        if score > best_score:
+            best, best_score = res.T, score
     return best
 
 

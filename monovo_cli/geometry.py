@@ -9,6 +9,7 @@ Angles are radians here; degrees exist only at the interfaces.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -68,12 +69,25 @@ def _so3_left_jacobian(w: np.ndarray) -> np.ndarray:
 
 
 def se3_exp(xi: np.ndarray) -> np.ndarray:
-    """4x4 rigid transform ``exp(xi^)`` of the twist ``xi = (v, w)`` (6,), metres and radians."""
+    """4x4 rigid transform ``exp(xi^)`` of the twist ``xi = (v, w)`` (6,), metres and radians.
+
+    R = I + A W + B W^2 (Rodrigues) and t = (I + B W + C W^2) v (the left Jacobian), with
+    W = [w]x, A = sin(t)/t, B = (1 - cos(t))/t^2, C = (t - sin(t))/t^3, t = |w|.
+    """
     xi = np.asarray(xi, dtype=float)
     v, w = xi[:3], xi[3:]
+    theta2 = float(w @ w)
+    if theta2 < 1e-16:
+        a, b, c = 1.0, 0.5, 1.0 / 6.0
+    else:
+        theta = math.sqrt(theta2)
+        sin_t = math.sin(theta)
+        a, b, c = sin_t / theta, (1.0 - math.cos(theta)) / theta2, (theta - sin_t) / (theta2 * theta)
+    W = skew(w)
+    W2 = W @ W
     T = np.eye(4)
-    T[:3, :3] = so3_exp(w)
-    T[:3, 3] = _so3_left_jacobian(w) @ v
+    T[:3, :3] += a * W + b * W2
+    T[:3, 3] = v + b * (W @ v) + c * (W2 @ v)
     return T
 
 

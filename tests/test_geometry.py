@@ -21,6 +21,21 @@ from monovo_cli.ground import Plane
 twists = st.lists(st.floats(-3.0, 3.0), min_size=6, max_size=6).map(np.array)
 
 
+@settings(max_examples=200, deadline=None)
+@given(twists, st.sampled_from([1.0, 1e-3, 1e-7, 1e-9]))
+def test_se3_exp_is_the_matrix_exponential(xi, scale):
+    """Closed form against the power series of the 4x4 twist matrix, down to tiny angles."""
+    xi = xi * scale
+    M = np.zeros((4, 4))
+    M[:3, :3] = [[0.0, -xi[5], xi[4]], [xi[5], 0.0, -xi[3]], [-xi[4], xi[3], 0.0]]
+    M[:3, 3] = xi[:3]
+    term, series = np.eye(4), np.eye(4)
+    for k in range(1, 60):
+        term = term @ M / k
+        series = series + term
+    np.testing.assert_allclose(se3_exp(xi), series, atol=1e-12 * max(1.0, np.abs(series).max()))
+
+
 @settings(max_examples=300, deadline=None)
 @given(twists)
 def test_se3_exp_log_round_trip(xi):
