@@ -132,3 +132,45 @@ def test_spline_gradient_is_exact_on_a_cubic_polynomial():
     sl = (slice(12, 38), slice(12, 48))
     np.testing.assert_allclose(gx[sl], (0.04 * xs - 0.01 * ys + 3)[sl], atol=2e-3)
     np.testing.assert_allclose(gy[sl], (-0.01 * xs + 3e-4 * ys ** 2)[sl], atol=2e-3)
+
+
+def _plane_level(cam, rng, n=400):
+    """A KeyLevel of random keyframe pixels lifted onto a tilted plane in front of ``cam``."""
+    from monovo_cli.estimate import KeyLevel
+    from monovo_cli.ground import LevelPoints, Plane
+
+    plane = Plane(np.array([0.0, -0.6, 0.8]) / np.linalg.norm([0.0, -0.6, 0.8]), 4.0)
+    uv = np.column_stack([rng.uniform(20, cam.width - 20, n), rng.uniform(20, cam.height - 20, n)])
+    X = plane.intersect(cam.rays(uv))
+    pts = LevelPoints(0, cam, uv, X, np.full(n, 100.0, np.float32),
+                      rng.normal(size=(n, 2)).astype(np.float32), np.zeros((4, 3)))
+    return KeyLevel.from_points(pts)
+
+
+@pytest.mark.parametrize("seed", range(5))
+def test_homography_warp_equals_moving_and_projecting_the_points(seed):
+    """The plane's homography on the keyframe pixels lands where the moved 3-D points project."""
+    rng = np.random.default_rng(seed)
+    cam = PinholeCamera(640, 480, 600.0, 610.0, 319.5, 239.5)
+    level = _plane_level(cam, rng)
+    T = se3_exp(np.r_[rng.normal(0, 0.3, 3), rng.normal(0, 0.05, 3)])
+    grid = level.warp_grid(T).reshape(-1, 2)[:len(level.points)]
+    expected = cam.project(level.points.X @ T[:3, :3].T + T[:3, 3])
+    np.testing.assert_allclose(grid, expected, atol=2e-3)
+
+
+def test_points_behind_the_camera_are_invalid():
+    """A pose that puts part of the plane behind the camera: those points are not sampled."""
+    from monovo_cli.estimate import residuals
+
+    rng = np.random.default_rng(8)
+    cam = PinholeCamera(640, 480, 600.0, 610.0, 319.5, 239.5)
+    level = _plane_level(cam, rng)
+    T = np.eye(4)
+    T[2, 3] = -float(np.median(level.points.X[:, 2]))  # half the points end up behind
+    behind = level.points.X[:, 2] + T[2, 3] <= 0
+    assert 0 < behind.sum() < len(behind)
+    img = rng.uniform(0, 255, (480, 640)).astype(np.float32)
+    r, valid = residuals(level, img, T)
+    assert not valid[behind].any()
+    assert np.all(r[~valid] == 0.0)
