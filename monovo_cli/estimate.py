@@ -26,9 +26,9 @@ iteration solves the weighted normal equations (eq. 10.21 with robust weights W)
 and composes on SE(3): T <- T exp(-xi^). Iterations stop when the mean squared
 difference (eq. 10.3) falls by less than delta_2 (relative), the update moves the points
 by less than ``step_tolerance_px``, or it rises (the step is then halved, then refused).
-This runs coarse to fine over an image pyramid. O^T W O is formed once per level (with the
-level's first weights; the fixed point O^T W FD = 0 is the same) and O^T W FD every
-iteration.
+This runs coarse to fine over an image pyramid. O^T W O is formed anew only after a step
+that moved the points by more than REWEIGHT_PX (the fixed point O^T W FD = 0 does not depend
+on it), O^T W FD every iteration.
 
 The warp is exact: the points lie on the keyframe's plane n.X = d, so a keyframe pixel x
 moves to K (R + t n^T / d) K^-1 x, the plane's homography, applied to all points in one
@@ -184,6 +184,7 @@ def pixel_grid(u: np.ndarray, v: np.ndarray, out: np.ndarray | None = None) -> n
     return out
 
 
+REWEIGHT_PX = 0.5  # a step that moved the points further than this gets a fresh O^T W O
 MAD_SAMPLES = 5000  # the robust scale's median is taken over at most about this many residuals
 
 
@@ -412,7 +413,7 @@ def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float,
     iterations = 0
     min_valid = max(opts.min_valid_points, npar)
     scale = None  # the robust scale, from this level's first residuals (MAD)
-    H = None
+    H, move = None, 0.0
     for _ in range(max_iterations):
         if nv < min_valid:
             break
@@ -421,7 +422,9 @@ def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float,
         w = robust_weights(r, opts.robust, huber_k=opts.huber_k, tukey_c=opts.tukey_c,
                            scale=scale)[0]
         w *= valid
-        if H is None:  # the level's first weights serve its later iterations too
+        if H is None or move > REWEIGHT_PX:
+            # O^T W O with these weights; kept while the steps are small (the weights then
+            # barely change, and the fixed point O^T W FD = 0 does not depend on it)
             Jw = Jt * w
             H = (Jw @ Jt.T).astype(np.float64)
             b = (Jw @ r).astype(np.float64)
@@ -483,15 +486,15 @@ def coarse_search(level: KeyLevel, image: np.ndarray, cur_from_key: np.ndarray, 
                   options: EstimatorOptions, noise_sigma: float, gain: float = 1.0,
                   bias: float = 0.0,
                   angles_deg: Sequence[float] = (-6.0, -3.0, 0.0, 3.0, 6.0),
-                  roll_deg: Sequence[float] = (-5.0, 0.0, 5.0), keep: int = 5,
-                  screen_iterations: int = 4) -> np.ndarray:
+                  roll_deg: Sequence[float] = (-5.0, 0.0, 5.0)) -> np.ndarray:
     """A start that survives large motions: try a grid of rotations at the top pyramid level.
 
     Each hypothesis ``exp(w) cur_from_key`` (rotations about the current camera's x and y by
-    ``angles_deg``, about z by ``roll_deg``) gets ``screen_iterations`` Gauss-Newton
-    iterations at this level; the ``keep`` with the most inliers get up to eight more, and
-    the one with the most inliers then wins (two screening iterations missed one pair in 200
-    of the paper protocol, at rotations of (4.9, 2.9, 3.3) deg). Returns the winning ``cur_from_key``.
+    ``angles_deg``, about z by ``roll_deg``) is refined with up to eight Gauss-Newton
+    iterations at this level; the one with the most inliers wins. (Screening all with fewer
+    iterations and refining only the best few lost pairs of the paper protocol: one in 1000
+    at rotations of (-4.9, 4.8, 0.5) deg even with eight screening iterations and the best
+    five refined.) Returns the winning ``cur_from_key``.
 
     ``noise_sigma`` is the full-resolution noise; each pyramid level's 5-tap binomial
     smoothing divides white noise by ~3.7 (0.273 per level), so the inlier threshold is scaled
@@ -502,19 +505,15 @@ def coarse_search(level: KeyLevel, image: np.ndarray, cur_from_key: np.ndarray, 
     image = np.ascontiguousarray(image, dtype=np.float32)
     contrast = float(np.std(level.points.intensity)) if len(level.points) else 1.0
     noise_sigma = max(noise_sigma * 0.273 ** level.points.level, 0.05 * contrast)
-    first = []
     for rz in roll_deg:
         for rx in angles_deg:
             for ry in angles_deg:
                 w = np.radians([rx, ry, rz])
                 T0 = se3_exp(np.r_[0.0, 0.0, 0.0, w]) @ cur_from_key
-                res = _solve_level(level, image, T0, gain, bias, options, 1e-2, screen_iterations)
-                first.append((inlier_fraction(res.r, res.valid, noise_sigma), len(first), res))
-    for _, _, res in sorted(first, key=lambda c: (-c[0], c[1]))[:keep]:
-        res = _solve_level(level, image, res.T, res.gain, res.bias, options, 1e-2, 8)
-        score = inlier_fraction(res.r, res.valid, noise_sigma)
-        if score > best_score:
-            best, best_score = res.T, score
+                res = _solve_level(level, image, T0, gain, bias, options, 1e-2, 8)
+                score = inlier_fraction(res.r, res.valid, noise_sigma)
+                if score > best_score:
+                    best, best_score = res.T, score
     return best
 
 
