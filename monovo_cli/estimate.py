@@ -167,15 +167,13 @@ def sample_at(image: np.ndarray, grid: np.ndarray, n: int, flag: int) -> tuple[n
     return vals, valid
 
 
-def pixel_grid(u: np.ndarray, v: np.ndarray, out: np.ndarray | None = None) -> np.ndarray:
+def pixel_grid(u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Positions (u, v) (N,) packed into a remap grid (rows, GRID_COLUMNS, 2) float32.
 
     The padding, and positions that are not finite, sit far outside every image (invalid).
     """
     n = len(u)
-    rows = max(1, -(-n // GRID_COLUMNS))
-    if out is None:
-        out = np.empty((rows, GRID_COLUMNS, 2), np.float32)
+    out = np.empty((max(1, -(-n // GRID_COLUMNS)), GRID_COLUMNS, 2), np.float32)
     flat = out.reshape(-1, 2)
     flat[:n, 0] = u
     flat[:n, 1] = v
@@ -371,20 +369,16 @@ def residuals(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float = 1
 
 def _probe_move(level: KeyLevel, T0: np.ndarray, T1: np.ndarray) -> float:
     """Largest image displacement (px) of the level's probe points between poses T0 and T1."""
+    P = level.probes
+    if not len(P):
+        return 0.0
+    A = P @ T0[:3, :3].T + T0[:3, 3]
+    B = P @ T1[:3, :3].T + T1[:3, 3]
+    if A[:, 2].min() <= 1e-9 or B[:, 2].min() <= 1e-9:
+        return float("inf")
     cam = level.points.camera
-    fx, fy = cam.fx, cam.fy
-    worst = 0.0
-    for X in level.probes.tolist():
-        uv = []
-        for T in (T0, T1):
-            x = T[0, 0] * X[0] + T[0, 1] * X[1] + T[0, 2] * X[2] + T[0, 3]
-            y = T[1, 0] * X[0] + T[1, 1] * X[1] + T[1, 2] * X[2] + T[1, 3]
-            z = T[2, 0] * X[0] + T[2, 1] * X[1] + T[2, 2] * X[2] + T[2, 3]
-            if z <= 1e-9:
-                return float("inf")
-            uv.append((fx * x / z, fy * y / z))
-        worst = max(worst, abs(uv[1][0] - uv[0][0]), abs(uv[1][1] - uv[0][1]))
-    return worst
+    d = B[:, :2] / B[:, 2:] - A[:, :2] / A[:, 2:]
+    return float(max(cam.fx * np.abs(d[:, 0]).max(), cam.fy * np.abs(d[:, 1]).max()))
 
 
 @dataclass
