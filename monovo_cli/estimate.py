@@ -485,10 +485,8 @@ def coarse_search(level: KeyLevel, image: np.ndarray, cur_from_key: np.ndarray, 
 
     Each hypothesis ``exp(w) cur_from_key`` (rotations about the current camera's x and y by
     ``angles_deg``, about z by ``roll_deg``) is refined with up to eight Gauss-Newton
-    iterations at this level; the one with the most inliers wins. (Screening all with fewer
-    iterations and refining only the best few lost pairs of the paper protocol: one in 1000
-    at rotations of (-4.9, 4.8, 0.5) deg even with eight screening iterations and the best
-    five refined.) Returns the winning ``cur_from_key``.
+    iterations at this level; the one with the most inliers wins. Returns the winning
+    ``cur_from_key``.
 
     ``noise_sigma`` is the full-resolution noise; each pyramid level's 5-tap binomial
     smoothing divides white noise by ~3.7 (0.273 per level), so the inlier threshold is scaled
