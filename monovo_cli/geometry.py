@@ -23,15 +23,22 @@ def skew(w: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -wz, wy], [wz, 0.0, -wx], [-wy, wx, 0.0]])
 
 
+def _exp_coefficients(theta2: float) -> tuple[float, float, float]:
+    """A = sin(t)/t, B = (1 - cos(t))/t^2, C = (t - sin(t))/t^3 at t^2 = ``theta2``: exp of a
+    rotation vector w is I + A W + B W^2 and its left Jacobian I + B W + C W^2 (W = [w]x)."""
+    if theta2 < 1e-16:
+        return 1.0, 0.5, 1.0 / 6.0
+    theta = math.sqrt(theta2)
+    sin_t = math.sin(theta)
+    return sin_t / theta, (1.0 - math.cos(theta)) / theta2, (theta - sin_t) / (theta2 * theta)
+
+
 def so3_exp(w: np.ndarray) -> np.ndarray:
     """Rotation matrix of the rotation vector ``w`` (3,), radians (Rodrigues)."""
     w = np.asarray(w, dtype=float)
-    theta2 = float(w @ w)
+    a, b, _ = _exp_coefficients(float(w @ w))
     W = skew(w)
-    if theta2 < 1e-16:
-        return np.eye(3) + W + 0.5 * W @ W
-    theta = np.sqrt(theta2)
-    return np.eye(3) + (np.sin(theta) / theta) * W + ((1.0 - np.cos(theta)) / theta2) * W @ W
+    return np.eye(3) + a * W + b * W @ W
 
 
 def so3_log(R: np.ndarray) -> np.ndarray:
@@ -56,33 +63,17 @@ def so3_log(R: np.ndarray) -> np.ndarray:
 
 
 def _so3_left_jacobian(w: np.ndarray) -> np.ndarray:
-    theta2 = float(w @ w)
+    _, b, c = _exp_coefficients(float(w @ w))
     W = skew(w)
-    if theta2 < 1e-16:
-        return np.eye(3) + 0.5 * W + W @ W / 6.0
-    theta = np.sqrt(theta2)
-    return (
-        np.eye(3)
-        + ((1.0 - np.cos(theta)) / theta2) * W
-        + ((theta - np.sin(theta)) / (theta2 * theta)) * W @ W
-    )
+    return np.eye(3) + b * W + c * W @ W
 
 
 def se3_exp(xi: np.ndarray) -> np.ndarray:
-    """4x4 rigid transform ``exp(xi^)`` of the twist ``xi = (v, w)`` (6,), metres and radians.
-
-    R = I + A W + B W^2 (Rodrigues) and t = (I + B W + C W^2) v (the left Jacobian), with
-    W = [w]x, A = sin(t)/t, B = (1 - cos(t))/t^2, C = (t - sin(t))/t^3, t = |w|.
-    """
+    """4x4 rigid transform ``exp(xi^)`` of the twist ``xi = (v, w)`` (6,), metres and radians:
+    ``so3_exp(w)`` and ``_so3_left_jacobian(w) @ v``, sharing W and W^2."""
     xi = np.asarray(xi, dtype=float)
     v, w = xi[:3], xi[3:]
-    theta2 = float(w @ w)
-    if theta2 < 1e-16:
-        a, b, c = 1.0, 0.5, 1.0 / 6.0
-    else:
-        theta = math.sqrt(theta2)
-        sin_t = math.sin(theta)
-        a, b, c = sin_t / theta, (1.0 - math.cos(theta)) / theta2, (theta - sin_t) / (theta2 * theta)
+    a, b, c = _exp_coefficients(float(w @ w))
     W = skew(w)
     W2 = W @ W
     T = np.eye(4)
