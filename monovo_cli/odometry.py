@@ -135,7 +135,7 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
     threshold = options.threshold if options.threshold is not None else default_threshold(sigma)
     corners = rectangle_corners(camera, plane, region)
     budget = point_budget(options, camera)
-    coarse = min(budget, max(2000, camera.width * camera.height // options.coarse_pixels_per_point))
+    coarse = min(budget, _one_point_per(options.coarse_pixels_per_point, camera))
     spline = options.estimator.interpolation != "linear"
     if not np.all(np.isfinite(corners)) or np.any(corners[:, 2] <= 0):
         raise TrackingError("the ground plane is not in front of the camera over the region")
@@ -162,11 +162,16 @@ ALL_POINTS = 1 << 30  # max_points meaning "no cap" (`--max-points all`)
 NOISE_CAP = 12.0  # grey levels: the most current-frame noise the loss checks allow for
 
 
+def _one_point_per(pixels: int, camera: PinholeCamera) -> int:
+    """One point per ``pixels`` pixels of the image, at least 2000."""
+    return int(max(2000, camera.width * camera.height // pixels))
+
+
 def point_budget(options: TrackOptions, camera: PinholeCamera) -> int:
     """Observation points at full resolution: ``max_points`` or one per ``pixels_per_point`` px."""
     if options.max_points is not None:
         return int(options.max_points)
-    return int(max(2000, camera.width * camera.height // options.pixels_per_point))
+    return _one_point_per(options.pixels_per_point, camera)
 
 
 def footprint(camera: PinholeCamera, corners_cur: np.ndarray) -> float:
