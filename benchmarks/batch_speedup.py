@@ -46,8 +46,8 @@ if __name__ == "__main__":  # not in spawned workers (__mp_main__): they get the
     _code_snapshot()
 
 from benchmarks.common import machine  # noqa: E402
-from monovo_cli.batch import run_batch  # noqa: E402
-from monovo_cli.synth import synthesize  # noqa: E402
+from monovo_cli.pipeline.batch import run_batch  # noqa: E402
+from monovo_cli.synth.write import synthesize  # noqa: E402
 
 COMPARED = ("motion.csv", "trajectory.csv", "trajectory.tum", "trajectory.png")
 

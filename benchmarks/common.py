@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from monovo_cli.geometry import se3_inv, so3_log
+from monovo_cli.geometry.lie import se3_inv, so3_log
 
 
 def machine() -> str:
@@ -144,16 +144,11 @@ def pair_scenes(pairs_dir: Path):
     """
     import yaml
 
-    from monovo_cli.config import load_init
-    from monovo_cli.outputs import read_motion_csv
-    from monovo_cli.synth import (
-        GroundTexture,
-        default_camera,
-        ground_in_camera,
-        pair_poses,
-        procedural_texture,
-        procedural_texture_size,
-    )
+    from monovo_cli.io.config import load_init
+    from monovo_cli.io.formats import read_motion_csv
+    from monovo_cli.synth.motion import pair_poses
+    from monovo_cli.synth.render import default_camera, ground_in_camera
+    from monovo_cli.synth.texture import GroundTexture, procedural_texture, procedural_texture_size
 
     pairs_dir = Path(pairs_dir)
     params = yaml.safe_load((pairs_dir / "synth.yaml").read_text())
@@ -208,7 +203,7 @@ def drive_arguments(doc: str | None):
 
 def _points(value: str) -> int:
     if value.strip().lower() == "all":
-        from monovo_cli.odometry import ALL_POINTS
+        from monovo_cli.core.odometry import ALL_POINTS
 
         return ALL_POINTS
     return int(value)
@@ -236,13 +231,13 @@ def options_note(args) -> str:
     mp = getattr(args, "max_points", None)
     if mp is None:
         return "default options"
-    from monovo_cli.odometry import ALL_POINTS
+    from monovo_cli.core.odometry import ALL_POINTS
 
     return f"default options but `--max-points {'all' if mp >= ALL_POINTS else mp}`"
 
 
 def track_options(args):
     """monovo's TrackOptions for a benchmark run (only ``--max-points`` is varied)."""
-    from monovo_cli.odometry import TrackOptions
+    from monovo_cli.core.odometry import TrackOptions
 
     return TrackOptions(max_points=getattr(args, "max_points", None))

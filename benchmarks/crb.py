@@ -61,8 +61,9 @@ from benchmarks.common import (
     track_options,
 )
 from benchmarks.paper_tables import run_pairs, scene_header
-from monovo_cli.geometry import PinholeCamera, pose_from_vectors, so3_log
-from monovo_cli.synth import GroundRenderer, plane_homography
+from monovo_cli.geometry.camera import PinholeCamera
+from monovo_cli.geometry.lie import pose_from_vectors, so3_log
+from monovo_cli.synth.render import GroundRenderer, plane_homography
 
 H_T = 3e-3  # m
 H_R = 3e-5  # rad

@@ -18,10 +18,10 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 
 from benchmarks.common import drive_arguments, final_drift, machine  # noqa: E402
-from monovo_cli.odometry import TrackOptions  # noqa: E402
-from monovo_cli.outputs import read_motion_csv, read_tum  # noqa: E402
-from monovo_cli.runner import track_sequence  # noqa: E402
-from monovo_cli.synth import synthesize  # noqa: E402
+from monovo_cli.core.odometry import TrackOptions  # noqa: E402
+from monovo_cli.io.formats import read_motion_csv, read_tum  # noqa: E402
+from monovo_cli.pipeline.track import track_sequence  # noqa: E402
+from monovo_cli.synth.write import synthesize  # noqa: E402
 
 
 def run_drive(root: Path, frames: int, size: tuple[int, int], noise_var: float, seed: int,

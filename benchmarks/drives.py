@@ -31,13 +31,13 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from benchmarks.common import final_drift, machine, motion_errors  # noqa: E402
-from monovo_cli.config import load_init  # noqa: E402
-from monovo_cli.frames import FrameSequence  # noqa: E402
-from monovo_cli.ground import Plane  # noqa: E402
-from monovo_cli.odometry import TrackOptions, track  # noqa: E402
-from monovo_cli.outputs import read_motion_csv, read_tum  # noqa: E402
-from monovo_cli.runner import track_sequence  # noqa: E402
-from monovo_cli.synth import synthesize  # noqa: E402
+from monovo_cli.core.odometry import TrackOptions, track  # noqa: E402
+from monovo_cli.geometry.plane import Plane  # noqa: E402
+from monovo_cli.io.config import load_init  # noqa: E402
+from monovo_cli.io.formats import read_motion_csv, read_tum  # noqa: E402
+from monovo_cli.io.frames import FrameSequence  # noqa: E402
+from monovo_cli.pipeline.track import track_sequence  # noqa: E402
+from monovo_cli.synth.write import synthesize  # noqa: E402
 
 SYNTH = {"clean": {}, "exposure": {"exposure": True}, "shadow": {"shadow": 0.15},
          "lowtex": {"low_texture": True}}

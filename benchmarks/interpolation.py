@@ -24,14 +24,15 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import AXES, axis_table, machine, motion_errors, one_core
-from monovo_cli.config import load_init
-from monovo_cli.estimate import INTERPOLATION, EstimatorOptions, residuals
-from monovo_cli.frames import FrameSequence
-from monovo_cli.geometry import se3_inv
-from monovo_cli.ground import Plane
-from monovo_cli.odometry import ALL_POINTS, TrackOptions, build_keyframe, track
-from monovo_cli.outputs import read_motion_csv
-from monovo_cli.synth import synthesize
+from monovo_cli.core.estimate import EstimatorOptions, residuals
+from monovo_cli.core.odometry import ALL_POINTS, TrackOptions, build_keyframe, track
+from monovo_cli.geometry.lie import se3_inv
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.image.sampling import INTERPOLATION
+from monovo_cli.io.config import load_init
+from monovo_cli.io.formats import read_motion_csv
+from monovo_cli.io.frames import FrameSequence
+from monovo_cli.synth.write import synthesize
 
 
 def main() -> None:

@@ -22,13 +22,14 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import drive_arguments, machine
-from monovo_cli.config import load_init
-from monovo_cli.ground import Plane
-from monovo_cli.odometry import TrackOptions
-from monovo_cli.outputs import read_motion_csv, read_trajectory_csv, read_tum
-from monovo_cli.overlay import default_triangle_pixels, triangle_on_ground, vertex_errors
-from monovo_cli.runner import overlay_sequence, track_sequence
-from monovo_cli.synth import synthesize
+from monovo_cli.core.odometry import TrackOptions
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.io.config import load_init
+from monovo_cli.io.formats import read_motion_csv, read_trajectory_csv, read_tum
+from monovo_cli.pipeline.overlay import overlay_sequence
+from monovo_cli.pipeline.track import track_sequence
+from monovo_cli.synth.write import synthesize
+from monovo_cli.viz.overlay import default_triangle_pixels, triangle_on_ground, vertex_errors
 
 
 def wide_triangle_pixels(region: tuple[int, int, int, int]) -> np.ndarray:
@@ -92,7 +93,7 @@ def evo_check(est_path: Path, gt_path: Path) -> list[tuple[str, float, float]] |
         from evo.tools import file_interface
     except ImportError:
         return None
-    from monovo_cli.evaluate import evaluate
+    from monovo_cli.core.evaluate import evaluate
 
     ts_e, e = read_tum(est_path)
     ts_g, g = read_tum(gt_path)

@@ -36,19 +36,14 @@ from benchmarks.common import (
     options_note,
     track_options,
 )
-from monovo_cli.config import load_init
-from monovo_cli.frames import FrameSequence
-from monovo_cli.ground import Plane
-from monovo_cli.odometry import TrackOptions, track
-from monovo_cli.outputs import read_motion_csv
-from monovo_cli.synth import (
-    PAIR_DISTANCE,
-    PAIR_EXTRA_TILT_DEG,
-    PAIR_MAX_TRANSLATION,
-    PAIR_TILT_DEG,
-    default_camera,
-    synthesize,
-)
+from monovo_cli.core.odometry import TrackOptions, track
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.io.config import load_init
+from monovo_cli.io.formats import read_motion_csv
+from monovo_cli.io.frames import FrameSequence
+from monovo_cli.synth.motion import PAIR_DISTANCE, PAIR_EXTRA_TILT_DEG, PAIR_MAX_TRANSLATION, PAIR_TILT_DEG
+from monovo_cli.synth.render import default_camera
+from monovo_cli.synth.write import synthesize
 
 PAPER_MEAN = np.array([0.00203, 0.00065, 0.01027, 0.00537, 0.00324, 0.00150])
 PAPER_STD = np.array([0.00124, 0.00033, 0.00177, 0.00316, 0.00234, 0.00042])

@@ -66,13 +66,13 @@ from benchmarks.common import (
     track_options,
 )
 from benchmarks.paper_tables import run_pairs
-from monovo_cli.config import load_init
-from monovo_cli.geometry import make_pose, se3_inv
-from monovo_cli.ground import Plane
-from monovo_cli.odometry import TrackOptions
-from monovo_cli.outputs import read_motion_csv, read_tum
-from monovo_cli.runner import track_sequence
-from monovo_cli.synth import synthesize
+from monovo_cli.core.odometry import TrackOptions
+from monovo_cli.geometry.lie import make_pose, se3_inv
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.io.config import load_init
+from monovo_cli.io.formats import read_motion_csv, read_tum
+from monovo_cli.pipeline.track import track_sequence
+from monovo_cli.synth.write import synthesize
 
 ORB_FEATURES = 3000
 ORB_LEVELS = 3

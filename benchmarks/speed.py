@@ -44,13 +44,13 @@ from pathlib import Path
 
 from benchmarks.common import Stopwatch, final_drift, load, machine, one_core
 from benchmarks.peers import EccPeer, peer_on_drive
-from monovo_cli.config import load_init
-from monovo_cli.frames import FrameSequence
-from monovo_cli.ground import Plane
-from monovo_cli.odometry import TrackOptions, track
-from monovo_cli.outputs import read_tum
-from monovo_cli.runner import track_sequence
-from monovo_cli.synth import synthesize
+from monovo_cli.core.odometry import TrackOptions, track
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.io.config import load_init
+from monovo_cli.io.formats import read_tum
+from monovo_cli.io.frames import FrameSequence
+from monovo_cli.pipeline.track import track_sequence
+from monovo_cli.synth.write import synthesize
 
 SIZES = ("256x256", "512x512", "688x544", "1024x1024")
 TARGET_FPS = {"256x256": 150.0, "512x512": 50.0, "1024x1024": 12.0}  # issue 5, end to end

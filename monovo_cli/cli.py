@@ -141,8 +141,8 @@ class _Progress:
 
 def _track_options(levels, threshold, max_points, robust, reanchor_fraction, *,
                    photometric=True, max_step=(None, None)):
-    from monovo_cli.estimate import EstimatorOptions
-    from monovo_cli.odometry import TrackOptions
+    from monovo_cli.core.estimate import EstimatorOptions
+    from monovo_cli.core.odometry import TrackOptions
 
     return TrackOptions(levels=levels, threshold=threshold, max_points=max_points,
                         reanchor_fraction=reanchor_fraction, max_step_m=max_step[0],
@@ -187,7 +187,7 @@ class _MaxPoints(click.ParamType):
         if isinstance(value, int):
             return value
         if str(value).strip().lower() == "all":
-            from monovo_cli.odometry import ALL_POINTS
+            from monovo_cli.core.odometry import ALL_POINTS
 
             return ALL_POINTS
         try:
@@ -255,7 +255,7 @@ def synth(ctx, out, preset, frames, size, noise_var, seed, texture, max_translat
           clean_frame0, overwrite, quiet, verbose):
     """Write a synthetic sequence with ground truth into OUT."""
     _setup(ctx, quiet, verbose)
-    from monovo_cli import synth as synth_mod
+    from monovo_cli.synth.write import synthesize
 
     wh = None
     if size is not None:
@@ -278,7 +278,7 @@ def synth(ctx, out, preset, frames, size, noise_var, seed, texture, max_translat
             out.unlink()
     bar = _Progress(quiet, "frame")
     try:
-        s = synth_mod.synthesize(out, preset=preset, frames=frames, size=wh, noise_var=noise_var,
+        s = synthesize(out, preset=preset, frames=frames, size=wh, noise_var=noise_var,
                                  seed=seed, texture=texture, max_translation=max_translation,
                                  exposure=exposure, clean_frame0=clean_frame0, progress=bar)
     finally:
@@ -300,7 +300,7 @@ def init(ctx, seq, params, out, levels, threshold, max_points, robust, reanchor_
          verbose):
     """Build the ground model and its observation points from frame 0 of SEQ."""
     _setup(ctx, quiet, verbose)
-    from monovo_cli.runner import init_model
+    from monovo_cli.pipeline.track import init_model
 
     key = init_model(seq, params, out, _track_options(levels, threshold, max_points, robust,
                                                       reanchor_fraction))
@@ -336,7 +336,7 @@ def track(ctx, seq, params, out, model, overwrite, skip_bad_frames, levels, thre
     With -o DIR also trajectory.png, the path seen from above on the ground plane.
     """
     _setup(ctx, quiet, verbose)
-    from monovo_cli.runner import track_sequence
+    from monovo_cli.pipeline.track import track_sequence
 
     to_stdout = out == "-"
     bar = _Progress(quiet, "frame")
@@ -400,7 +400,7 @@ def overlay(ctx, seq, params, trajectory, out, triangle, points, fps, overwrite,
       monovo overlay demo -t out/trajectory.csv -o out/overlay.mp4
     """
     _setup(ctx, quiet, verbose)
-    from monovo_cli.runner import overlay_sequence
+    from monovo_cli.pipeline.overlay import overlay_sequence
 
     bar = _Progress(quiet, "frame")
     try:
@@ -430,8 +430,8 @@ def eval_(ctx, estimate, groundtruth, align, as_json, quiet, verbose):
       monovo eval out/trajectory.tum demo/groundtruth.tum --align
     """
     _setup(ctx, quiet, verbose)
-    from monovo_cli.evaluate import evaluate, format_report
-    from monovo_cli.outputs import read_tum
+    from monovo_cli.core.evaluate import evaluate, format_report
+    from monovo_cli.io.formats import read_tum
 
     ts_e, est = read_tum(estimate)
     ts_g, gt = read_tum(groundtruth)
@@ -500,7 +500,7 @@ def batch(ctx, root, out, pattern, workers, scheduler, use_dask, resume, overwri
     _setup(ctx, quiet, verbose)
     import contextlib
 
-    from monovo_cli.batch import run_batch
+    from monovo_cli.pipeline.batch import run_batch
 
     if resume and overwrite:
         raise click.UsageError("--resume and --overwrite exclude each other: --resume keeps "

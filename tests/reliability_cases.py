@@ -73,7 +73,7 @@ class Outcome:
 
 def make_base_sequence(root: Path) -> Path:
     """A 6-frame 128x128 synthetic drive in ``root/seq`` (frames/, init.yaml, ground truth)."""
-    from monovo_cli.synth import synthesize
+    from monovo_cli.synth.write import synthesize
 
     seq = Path(root) / "seq"
     synthesize(seq, preset="drive", frames=BASE_FRAMES, size=(BASE_SIZE, BASE_SIZE), seed=4)
@@ -233,9 +233,9 @@ def _all(*setups: Callable[[Path, Path], None]) -> Callable[[Path, Path], None]:
 
 def _model_other_size(tmp: Path, seq: Path) -> None:
     """A model.npz built on a 96x96 sequence."""
-    from monovo_cli.odometry import TrackOptions
-    from monovo_cli.runner import init_model
-    from monovo_cli.synth import synthesize
+    from monovo_cli.core.odometry import TrackOptions
+    from monovo_cli.pipeline.track import init_model
+    from monovo_cli.synth.write import synthesize
 
     other = tmp / "other"
     synthesize(other, preset="drive", frames=2, size=(96, 96), seed=1)
@@ -244,8 +244,8 @@ def _model_other_size(tmp: Path, seq: Path) -> None:
 
 def _tracked(tmp: Path, seq: Path) -> Path:
     """Track ``seq`` into ``tmp/out`` (motion.csv, trajectory.csv, trajectory.tum)."""
-    from monovo_cli.odometry import TrackOptions
-    from monovo_cli.runner import track_sequence
+    from monovo_cli.core.odometry import TrackOptions
+    from monovo_cli.pipeline.track import track_sequence
 
     out = tmp / "out"
     if not (out / "trajectory.csv").exists():

@@ -11,10 +11,12 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from monovo_cli import batch
-from monovo_cli.batch import find_sequences, is_complete, run_batch, track_one
 from monovo_cli.cli import main
-from monovo_cli.synth import synthesize
+from monovo_cli.errors import InputError
+from monovo_cli.pipeline import batch
+from monovo_cli.pipeline.batch import run_batch
+from monovo_cli.pipeline.batch_job import find_sequences, is_complete, track_one
+from monovo_cli.synth.write import synthesize
 
 GOOD = ("a/s1", "a/s2", "b/deep/s3", "s4", "s10")
 BROKEN = "broken"
@@ -67,11 +69,11 @@ def test_find_sequences_nested_in_natural_order(archive, tmp_path):
 def test_find_sequences_glob_and_errors(archive, tmp_path):
     assert [p.as_posix() for p in find_sequences(archive, pattern="a/*")] == ["a/s1", "a/s2"]
     assert [p.as_posix() for p in find_sequences(archive, pattern="**/s3")] == ["b/deep/s3"]
-    with pytest.raises(batch.InputError, match="no directory under .* matches --glob 'zz\\*'"):
+    with pytest.raises(InputError, match="no directory under .* matches --glob 'zz\\*'"):
         find_sequences(archive, pattern="zz*")
-    with pytest.raises(batch.InputError, match="no sequence under"):
+    with pytest.raises(InputError, match="no sequence under"):
         find_sequences(tmp_path)
-    with pytest.raises(batch.InputError, match="no such directory"):
+    with pytest.raises(InputError, match="no such directory"):
         find_sequences(tmp_path / "missing")
 
 

@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 from monovo_cli import __version__
 from monovo_cli.cli import main
-from monovo_cli.outputs import read_tum
+from monovo_cli.io.formats import read_tum
 
 MOTION_HEADER = "frame,tx,ty,tz,rx,ry,rz,msd,iterations,points,status"
 TRAJ_HEADER = "frame,timestamp,tx,ty,tz,qx,qy,qz,qw"
@@ -132,7 +132,7 @@ def test_max_points_all_uses_every_pixel_above_the_threshold(tmp_path):
     from click.testing import CliRunner
 
     from monovo_cli.cli import main
-    from monovo_cli.outputs import load_model
+    from monovo_cli.io.model import load_model
 
     runner = CliRunner()
     seq = tmp_path / "seq"

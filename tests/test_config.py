@@ -13,7 +13,9 @@ import yaml
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from monovo_cli.config import (
+from monovo_cli.errors import ConfigError, MonovoError
+from monovo_cli.geometry.camera import PinholeCamera
+from monovo_cli.io.config import (
     GroundPlane,
     InitConfig,
     check_frame_size,
@@ -21,8 +23,6 @@ from monovo_cli.config import (
     load_init,
     normal_from_pitch_roll,
 )
-from monovo_cli.errors import ConfigError, MonovoError
-from monovo_cli.geometry import PinholeCamera
 
 S = math.sqrt(0.5)
 BASE = {
@@ -280,14 +280,14 @@ def test_normal_errors(tmp_path, value, msg):
 
 
 def test_non_unit_normal_normalised_with_warning(tmp_path, caplog):
-    with caplog.at_level(logging.WARNING, logger="monovo_cli.config"):
+    with caplog.at_level(logging.WARNING, logger="monovo_cli.io.config"):
         cfg = load(tmp_path, cfg_with(ground__normal=[0, 3.0, 4.0]))
     np.testing.assert_allclose(cfg.ground.normal, [0, 0.6, 0.8])
     assert any("normalised" in r.getMessage() and "length 5" in r.getMessage() for r in caplog.records)
 
 
 def test_unit_normal_no_warning(tmp_path, caplog):
-    with caplog.at_level(logging.WARNING, logger="monovo_cli.config"):
+    with caplog.at_level(logging.WARNING, logger="monovo_cli.io.config"):
         load(tmp_path, BASE)
     assert not caplog.records
 

@@ -4,17 +4,13 @@ import cv2
 import numpy as np
 import pytest
 
-from monovo_cli.geometry import PinholeCamera, se3_inv, so3_log
-from monovo_cli.ground import Plane
-from monovo_cli.odometry import TrackOptions, track
-from monovo_cli.synth import (
-    GroundRenderer,
-    GroundTexture,
-    default_camera,
-    drive_poses,
-    ground_in_camera,
-    procedural_texture,
-)
+from monovo_cli.core.odometry import TrackOptions, track
+from monovo_cli.geometry.camera import PinholeCamera
+from monovo_cli.geometry.lie import se3_inv, so3_log
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.synth.motion import drive_poses
+from monovo_cli.synth.render import GroundRenderer, default_camera, ground_in_camera
+from monovo_cli.synth.texture import GroundTexture, procedural_texture
 
 DIST = (-0.22, 0.06, 0.0008, -0.0006, 0.0)
 

@@ -9,15 +9,16 @@ import pytest
 from click.testing import CliRunner
 
 from monovo_cli.cli import main
-from monovo_cli.config import load_init
-from monovo_cli.estimate import KeyLevel, estimate_motion
-from monovo_cli.frames import FrameSequence
-from monovo_cli.geometry import se3_inv
-from monovo_cli.ground import Plane, rectangle_corners, select_points
-from monovo_cli.odometry import TrackOptions, track
-from monovo_cli.outputs import read_motion_csv, read_tum
-from monovo_cli.pyramid import build_pyramid
-from monovo_cli.synth import synthesize
+from monovo_cli.core.estimate import KeyLevel, estimate_motion
+from monovo_cli.core.ground import rectangle_corners, select_points
+from monovo_cli.core.odometry import TrackOptions, track
+from monovo_cli.geometry.lie import se3_inv
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.image.pyramid import build_pyramid
+from monovo_cli.io.config import load_init
+from monovo_cli.io.formats import read_motion_csv, read_tum
+from monovo_cli.io.frames import FrameSequence
+from monovo_cli.synth.write import synthesize
 
 
 @pytest.fixture(scope="module")

@@ -3,8 +3,10 @@
 import numpy as np
 import pytest
 
-from monovo_cli.estimate import distortion_jacobian, observation_matrix, sample_bilinear
-from monovo_cli.geometry import PinholeCamera, se3_exp
+from monovo_cli.core.estimate import distortion_jacobian, observation_matrix
+from monovo_cli.geometry.camera import PinholeCamera
+from monovo_cli.geometry.lie import se3_exp
+from monovo_cli.image.sampling import sample_bilinear
 
 
 def _linear_image(h=40, w=50, a=3.0, b=-2.0, c=7.0):
@@ -56,7 +58,7 @@ def test_bilinear_sampler_flags_points_outside():
 
 
 def _grid(u, v):
-    from monovo_cli.estimate import pixel_grid
+    from monovo_cli.image.sampling import pixel_grid
 
     return pixel_grid(np.asarray(u, float), np.asarray(v, float))
 
@@ -66,7 +68,7 @@ def test_remap_sampler_follows_a_linear_image(interpolation, px):
     """Bilinear interpolation reproduces a ramp; OpenCV's bicubic kernel (Keys, a = -0.75)
     and its Lanczos-4 (tabulated at 1/32 px) read it up to 0.048 / 0.03 px off, by the
     sample's fraction, unbiased on average."""
-    from monovo_cli.estimate import INTERPOLATION, sample_at
+    from monovo_cli.image.sampling import INTERPOLATION, sample_at
 
     img = _linear_image(60, 70)
     rng = np.random.default_rng(2)
@@ -82,7 +84,7 @@ def test_remap_sampler_follows_a_linear_image(interpolation, px):
 def test_remap_sampler_flags_points_outside_and_near_the_border(interpolation, reach):
     """Valid inside, with the kernel's support (``reach`` px) clear of the border; outside
     the image, NaN, inf and the grid's padding are invalid, and invalid points read 0."""
-    from monovo_cli.estimate import INTERPOLATION, sample_at
+    from monovo_cli.image.sampling import INTERPOLATION, sample_at
 
     img = _linear_image(40, 50) + 100.0
     u = [reach, 49.0 - reach, 25.5, -0.01, 49.01, 25.0, 25.0, np.nan, np.inf, 20.0]
@@ -95,7 +97,7 @@ def test_remap_sampler_flags_points_outside_and_near_the_border(interpolation, r
 def test_cubic_sampler_beats_bilinear_on_fine_texture():
     """On a band-limited texture with detail down to 3 px, cubic interpolation's error is
     < 1/2 of bilinear interpolation's (the reason it samples the finest level)."""
-    from monovo_cli.estimate import INTERPOLATION, sample_at
+    from monovo_cli.image.sampling import INTERPOLATION, sample_at
 
     rng = np.random.default_rng(11)
     waves = [(rng.uniform(-1 / 3, 1 / 3), rng.uniform(-1 / 3, 1 / 3), rng.uniform(0, 2 * np.pi))
@@ -124,7 +126,7 @@ def _interior(rng, n, lo, hi_u, hi_v):
 def test_spline_gradient_is_exact_on_a_cubic_polynomial():
     """The observation matrix at the finest level uses the interpolating cubic B-spline's
     derivative at the keyframe pixels: exact on a cubic polynomial away from the borders."""
-    from monovo_cli.ground import spline_gradient
+    from monovo_cli.image.gradients import spline_gradient
 
     ys, xs = np.mgrid[0:50, 0:60].astype(np.float64)
     img = (0.02 * xs ** 2 - 0.01 * xs * ys + 1e-4 * ys ** 3 + 3 * xs).astype(np.float32)
@@ -136,8 +138,9 @@ def test_spline_gradient_is_exact_on_a_cubic_polynomial():
 
 def _plane_level(cam, rng, n=400):
     """A KeyLevel of random keyframe pixels lifted onto a tilted plane in front of ``cam``."""
-    from monovo_cli.estimate import KeyLevel
-    from monovo_cli.ground import LevelPoints, Plane
+    from monovo_cli.core.estimate import KeyLevel
+    from monovo_cli.core.ground import LevelPoints
+    from monovo_cli.geometry.plane import Plane
 
     plane = Plane(np.array([0.0, -0.6, 0.8]) / np.linalg.norm([0.0, -0.6, 0.8]), 4.0)
     uv = np.column_stack([rng.uniform(20, cam.width - 20, n), rng.uniform(20, cam.height - 20, n)])
@@ -161,7 +164,7 @@ def test_homography_warp_equals_moving_and_projecting_the_points(seed):
 
 def test_points_behind_the_camera_are_invalid():
     """A pose that puts part of the plane behind the camera: those points are not sampled."""
-    from monovo_cli.estimate import residuals
+    from monovo_cli.core.estimate import residuals
 
     rng = np.random.default_rng(8)
     cam = PinholeCamera(640, 480, 600.0, 610.0, 319.5, 239.5)

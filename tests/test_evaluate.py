@@ -7,16 +7,10 @@ import pytest
 from click.testing import CliRunner
 
 from monovo_cli.cli import main
+from monovo_cli.core.evaluate import ate, evaluate, match_timestamps, relative_motion_errors, umeyama_se3
 from monovo_cli.errors import InputError
-from monovo_cli.evaluate import (
-    ate,
-    evaluate,
-    match_timestamps,
-    relative_motion_errors,
-    umeyama_se3,
-)
-from monovo_cli.geometry import pose_from_vectors, se3_inv, so3_log
-from monovo_cli.outputs import read_tum, tum_text
+from monovo_cli.geometry.lie import pose_from_vectors, se3_inv, so3_log
+from monovo_cli.io.formats import read_tum, tum_text
 
 
 def _drive(n=50, seed=3):

@@ -12,7 +12,7 @@ from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
 from monovo_cli.errors import InputError
-from monovo_cli.frames import (
+from monovo_cli.io.frames import (
     IMAGE_EXTENSIONS,
     Frame,
     FrameSequence,

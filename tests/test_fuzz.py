@@ -17,17 +17,11 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from monovo_cli.errors import InputError, MonovoError
-from monovo_cli.outputs import (
-    MOTION_COLUMNS,
-    STD_COLUMNS,
-    TRAJECTORY_COLUMNS,
-    load_model,
-    read_motion_csv,
-    read_tum,
-)
+from monovo_cli.io.formats import MOTION_COLUMNS, STD_COLUMNS, TRAJECTORY_COLUMNS, read_motion_csv, read_tum
+from monovo_cli.io.model import load_model
 
 try:  # added with monovo overlay
-    from monovo_cli.outputs import read_motion_stats, read_trajectory_csv
+    from monovo_cli.io.formats import read_motion_stats, read_trajectory_csv
 except ImportError:  # pragma: no cover
     read_motion_stats = read_trajectory_csv = None
 
@@ -201,9 +195,9 @@ def test_fuzz_read_motion_stats(scratch, data):
 
 @pytest.fixture(scope="module")
 def model_bytes(tmp_path_factory) -> bytes:
-    from monovo_cli.odometry import TrackOptions
-    from monovo_cli.runner import init_model
-    from monovo_cli.synth import synthesize
+    from monovo_cli.core.odometry import TrackOptions
+    from monovo_cli.pipeline.track import init_model
+    from monovo_cli.synth.write import synthesize
 
     root = tmp_path_factory.mktemp("model")
     synthesize(root / "seq", preset="drive", frames=2, size=(64, 64), seed=2)

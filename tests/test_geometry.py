@@ -5,8 +5,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from monovo_cli.geometry import (
-    PinholeCamera,
+from monovo_cli.geometry.camera import PinholeCamera
+from monovo_cli.geometry.lie import (
     matrix_from_quat,
     orthonormalize,
     quat_from_matrix,
@@ -16,7 +16,7 @@ from monovo_cli.geometry import (
     so3_exp,
     so3_log,
 )
-from monovo_cli.ground import Plane
+from monovo_cli.geometry.plane import Plane
 
 twists = st.lists(st.floats(-3.0, 3.0), min_size=6, max_size=6).map(np.array)
 
@@ -84,7 +84,7 @@ def test_scaled_camera_matches_cv2_pyrdown(level):
     """A bright dot seen at level 0 is where the scaled camera projects it at level l."""
     import cv2
 
-    from monovo_cli.pyramid import build_pyramid
+    from monovo_cli.image.pyramid import build_pyramid
 
     cam = PinholeCamera(160, 128, 150.0, 140.0, 79.5, 63.5)
     X = np.array([[0.1, -0.05, 1.0]])

@@ -13,13 +13,17 @@ import pytest
 from click.testing import CliRunner
 
 from monovo_cli.cli import main
-from monovo_cli.config import load_init
+from monovo_cli.core.odometry import TrackOptions
 from monovo_cli.errors import InputError, OutputError
-from monovo_cli.geometry import PinholeCamera, make_pose, pose_from_vectors
-from monovo_cli.ground import Plane
-from monovo_cli.odometry import TrackOptions
-from monovo_cli.outputs import read_trajectory_csv, read_tum
-from monovo_cli.overlay import (
+from monovo_cli.geometry.camera import PinholeCamera
+from monovo_cli.geometry.lie import make_pose, pose_from_vectors
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.io.config import load_init
+from monovo_cli.io.formats import read_trajectory_csv, read_tum
+from monovo_cli.io.video import open_sink, output_kind, pad_to_even
+from monovo_cli.pipeline.track import track_sequence
+from monovo_cli.synth.write import synthesize
+from monovo_cli.viz.overlay import (
     OverlayRenderer,
     clip_polygon,
     default_triangle_pixels,
@@ -29,10 +33,7 @@ from monovo_cli.overlay import (
     triangle_on_ground,
     vertex_errors,
 )
-from monovo_cli.plots import on_plane, plot_trajectory
-from monovo_cli.runner import track_sequence
-from monovo_cli.synth import synthesize
-from monovo_cli.video import open_sink, output_kind, pad_to_even
+from monovo_cli.viz.plots import on_plane, plot_trajectory
 
 
 @pytest.fixture(scope="module")
@@ -214,7 +215,7 @@ def test_renderer_points_and_text(tracked):
     cfg, plane, region = _setup(seq)
     tri = triangle_on_ground(cfg.camera, plane, None, region)
     r = OverlayRenderer(cfg.camera, plane, tri, region=region, points=True)
-    from monovo_cli.frames import FrameSequence
+    from monovo_cli.io.frames import FrameSequence
 
     img0 = FrameSequence(seq).read(0).image
     a = r.render(0, img0, np.eye(4), status="start", last=39)

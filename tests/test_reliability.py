@@ -22,7 +22,7 @@ from click.testing import CliRunner
 from reliability_cases import CASES, Outcome, make_base_sequence, run_case
 
 from monovo_cli.cli import main
-from monovo_cli.synth import synthesize
+from monovo_cli.synth.write import synthesize
 
 DOC = Path(__file__).resolve().parents[1] / "docs" / "reliability.md"
 _BAR = re.compile(r"^\s*\d+%\||^\s*$")  # tqdm progress output (split at its \r)
@@ -140,7 +140,7 @@ def test_streaming_subprocess_stdout_is_only_csv(base_seq, tmp_path):
 
 
 def test_internal_error_is_one_line_and_status_1(base_seq, tmp_path, monkeypatch):
-    import monovo_cli.runner as runner
+    import monovo_cli.pipeline.track as runner
 
     def boom(*a, **k):
         raise RuntimeError("simulated fault")
@@ -155,7 +155,7 @@ def test_internal_error_is_one_line_and_status_1(base_seq, tmp_path, monkeypatch
 
 _FAULTY = """
 import sys
-import monovo_cli.runner as runner
+import monovo_cli.pipeline.track as runner
 def boom(*a, **k):
     raise RuntimeError("simulated fault")
 runner.track_sequence = boom

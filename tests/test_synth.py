@@ -16,10 +16,11 @@ import numpy as np
 import pytest
 import yaml
 
-from monovo_cli import synth
+from monovo_cli import synth  # the package: its public names
 from monovo_cli.errors import InputError, MonovoError, OutputError
-from monovo_cli.geometry import PinholeCamera, make_pose, pose_from_vectors, se3_inv, so3_exp
-from monovo_cli.outputs import read_motion_csv, read_tum
+from monovo_cli.geometry.camera import PinholeCamera
+from monovo_cli.geometry.lie import make_pose, pose_from_vectors, se3_inv, so3_exp
+from monovo_cli.io.formats import read_motion_csv, read_tum
 
 SMALL = (128, 96)
 

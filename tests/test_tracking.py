@@ -10,13 +10,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from monovo_cli.config import load_init
-from monovo_cli.frames import FrameSequence
-from monovo_cli.geometry import se3_inv, so3_log
-from monovo_cli.ground import Plane, barycentric
-from monovo_cli.odometry import TrackOptions, build_keyframe, track
-from monovo_cli.outputs import read_motion_csv, read_tum
-from monovo_cli.synth import synthesize
+from monovo_cli.core.ground import barycentric
+from monovo_cli.core.odometry import TrackOptions, build_keyframe, track
+from monovo_cli.geometry.lie import se3_inv, so3_log
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.io.config import load_init
+from monovo_cli.io.formats import read_motion_csv, read_tum
+from monovo_cli.io.frames import FrameSequence
+from monovo_cli.synth.write import synthesize
 
 
 def _run(seq: Path, options: TrackOptions | None = None):

@@ -190,7 +190,7 @@ def open_sink(out: str | Path, *, fps: float = 10.0, overwrite: bool = False) ->
 
 def write_png_atomic(path: Path, image: np.ndarray) -> None:
     """Write ``image`` (H, W[, 3]) uint8 as a PNG through a temporary file + rename."""
-    from monovo_cli.outputs import atomic_write_bytes
+    from monovo_cli.io.atomic import atomic_write_bytes
 
     path = Path(path)
     ok, buf = cv2.imencode(".png", image)

@@ -10,8 +10,6 @@ from __future__ import annotations
 import csv
 import io
 import math
-import os
-import tempfile
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,8 +17,8 @@ from typing import IO
 
 import numpy as np
 
-from monovo_cli.errors import InputError, OutputError
-from monovo_cli.geometry import make_pose, matrix_from_quat, quat_from_matrix, so3_exp, so3_log
+from monovo_cli.errors import InputError
+from monovo_cli.geometry.lie import make_pose, matrix_from_quat, quat_from_matrix, so3_exp, so3_log
 
 MOTION_COLUMNS = ("frame", "tx", "ty", "tz", "rx", "ry", "rz", "msd", "iterations", "points",
                   "status")
@@ -36,44 +34,6 @@ def fmt(x: float) -> str:
     if x == 0.0:
         return "0"  # also folds -0.0
     return repr(x)
-
-
-def _file_mode() -> int:
-    """The mode a plain ``open()`` would give a new file (0666 less the umask); mkstemp uses 0600."""
-    mask = os.umask(0)
-    os.umask(mask)
-    return 0o666 & ~mask
-
-
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same directory + rename.
-
-    No half-written file ever carries the final name; the file gets the mode a plain
-    ``open()`` would give it.
-    """
-    path = Path(path)
-    try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        os.fchmod(fd, _file_mode())
-    except OSError as exc:
-        raise OutputError(f"{path.parent}: cannot write here ({exc.strerror})") from None
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-
-
-def atomic_write_text(path: Path, text: str) -> None:
-    """Write ``text`` (UTF-8, newlines as given) to ``path`` atomically."""
-    atomic_write_bytes(path, text.encode("utf-8"))
 
 
 @dataclass(frozen=True)
@@ -255,74 +215,6 @@ def read_motion_csv(path: Path) -> tuple[np.ndarray, np.ndarray, list[str]]:
         poses.append(make_pose(so3_exp(np.radians(v[4:7])), np.array(v[1:4])))
         statuses.append(r[10].strip() if len(r) > 10 else "ok")
     return np.array(frames, dtype=int), np.array(poses).reshape(-1, 4, 4), statuses
-
-
-def save_model(path: Path, keyframe, camera, region) -> None:
-    """Save a ground model (a :class:`~monovo_cli.odometry.Keyframe`) to ``model.npz`` atomically."""
-    path = Path(path)
-    arrays = {
-        "format": np.array("monovo-model-1"),
-        "camera": np.array([camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy]),
-        "distortion": np.asarray(camera.distortion, dtype=float),
-        "region": np.asarray(region, dtype=int),
-        "normal": keyframe.plane.normal,
-        "distance": np.array(keyframe.plane.distance),
-        "corners": keyframe.corners,
-        "noise_sigma": np.array(keyframe.noise_sigma),
-        "threshold": np.array(keyframe.threshold),
-        "levels": np.array(len(keyframe.levels)),
-    }
-    for lv, kl in enumerate(keyframe.levels):
-        p = kl.points
-        for name in ("uv", "X", "intensity", "grad", "tri", "bary"):
-            arrays[f"l{lv}_{name}"] = getattr(p, name)
-    buf = io.BytesIO()
-    np.savez_compressed(buf, **arrays)
-    atomic_write_bytes(path, buf.getvalue())
-
-
-def load_model(path: Path):
-    """Load ``model.npz``: returns ``(camera_params (6,), region, Keyframe)``."""
-    from monovo_cli.estimate import KeyLevel
-    from monovo_cli.geometry import PinholeCamera
-    from monovo_cli.ground import LevelPoints, Plane
-    from monovo_cli.odometry import Keyframe
-
-    path = Path(path)
-    not_model = f"{path}: not a monovo model (write one with 'monovo init')"
-    damaged = f"{path}: damaged or incomplete model; write it again with 'monovo init'"
-    try:
-        with open(path, "rb") as f:
-            if f.read(4) != b"PK\x03\x04":  # an .npz is a zip archive
-                raise InputError(not_model)
-        with np.load(path, allow_pickle=False) as z:
-            if "format" not in z or str(z["format"]) != "monovo-model-1":
-                raise InputError(not_model)
-            d = {k: z[k] for k in z.files}
-    except InputError:
-        raise
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read model ({exc.strerror or exc})") from None
-    except Exception:  # noqa: BLE001 - numpy's npy/zip readers raise ValueError, BadZipFile,
-        # zlib.error, EOFError, even SyntaxError/TokenError on a damaged header: all mean the same
-        raise InputError(damaged) from None
-    try:
-        c = d["camera"]
-        camera = PinholeCamera(int(c[0]), int(c[1]), float(c[2]), float(c[3]), float(c[4]),
-                               float(c[5]), tuple(float(v) for v in d["distortion"]))
-        plane = Plane(d["normal"].astype(float), float(d["distance"]))
-        levels = []
-        for lv in range(int(d["levels"])):
-            pts = LevelPoints(lv, camera.scaled(lv), *(d[f"l{lv}_{n}"] for n in
-                                                       ("uv", "X", "intensity", "grad")),
-                              d["corners"])
-            levels.append(KeyLevel.from_points(pts))
-        key = Keyframe(0, np.eye(4), plane, d["corners"], tuple(levels), float(d["noise_sigma"]),
-                       float(d["threshold"]))
-        region = tuple(int(v) for v in d["region"])
-    except (KeyError, ValueError, IndexError, TypeError):
-        raise InputError(damaged) from None
-    return camera, region, key
 
 
 def read_trajectory_csv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -37,8 +37,8 @@ import numpy as np
 import yaml
 
 from monovo_cli.errors import ConfigError
-from monovo_cli.geometry import PinholeCamera
-from monovo_cli.outputs import atomic_write_text
+from monovo_cli.geometry.camera import PinholeCamera
+from monovo_cli.io.atomic import atomic_write_text
 
 log = logging.getLogger(__name__)
 

@@ -18,7 +18,7 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
-from monovo_cli.ground import Plane
+from monovo_cli.geometry.plane import Plane
 
 BACKGROUND = (255, 255, 255)
 GRID = (230, 230, 230)

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from monovo_cli.errors import InputError
-from monovo_cli.geometry import se3_inv, so3_log
+from monovo_cli.geometry.lie import se3_inv, so3_log
 
 TIME_TOLERANCE = 1e-6  # s
 AXES = ("tx", "ty", "tz", "rx", "ry", "rz")

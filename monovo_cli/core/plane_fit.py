@@ -19,15 +19,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monovo_cli.estimate import (
-    EstimatorOptions,
-    distortion_jacobian,
-    project_in_front,
-    robust_weights,
-    sample_bilinear,
-)
-from monovo_cli.geometry import se3_exp
-from monovo_cli.ground import LevelPoints, Plane, sobel_gradient
+from monovo_cli.core.estimate import EstimatorOptions, distortion_jacobian, project_in_front, robust_weights
+from monovo_cli.core.ground import LevelPoints
+from monovo_cli.geometry.lie import se3_exp
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.image.gradients import sobel_gradient
+from monovo_cli.image.sampling import sample_bilinear
 
 
 @dataclass(frozen=True)

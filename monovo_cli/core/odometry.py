@@ -21,8 +21,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from monovo_cli.errors import TrackingError
-from monovo_cli.estimate import (
+from monovo_cli.core.estimate import (
     Estimate,
     EstimatorOptions,
     KeyLevel,
@@ -30,17 +29,14 @@ from monovo_cli.estimate import (
     estimate_motion,
     inlier_fraction,
 )
-from monovo_cli.geometry import PinholeCamera, orthonormalize, se3_inv, skew, so3_log
-from monovo_cli.ground import (
-    Plane,
-    default_threshold,
-    estimate_noise_sigma,
-    rectangle_corners,
-    require_points,
-    select_points,
-)
-from monovo_cli.plane import PlanePrior, refine_plane_and_motion
-from monovo_cli.pyramid import build_pyramid, num_levels
+from monovo_cli.core.ground import default_threshold, rectangle_corners, require_points, select_points
+from monovo_cli.core.plane_fit import PlanePrior, refine_plane_and_motion
+from monovo_cli.errors import TrackingError
+from monovo_cli.geometry.camera import PinholeCamera
+from monovo_cli.geometry.lie import orthonormalize, se3_inv, skew, so3_log
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.image.gradients import estimate_noise_sigma
+from monovo_cli.image.pyramid import build_pyramid, num_levels
 
 
 @dataclass(frozen=True)

@@ -20,21 +20,14 @@ from pathlib import Path
 
 import numpy as np
 
-from monovo_cli.config import InitConfig, check_frame_size, load_init
+from monovo_cli.core.odometry import FrameResult, Keyframe, Odometry, TrackOptions, build_keyframe
 from monovo_cli.errors import InputError, OutputError, TrackingError
-from monovo_cli.frames import FrameSequence, find_init_yaml, resolve_sequence
-from monovo_cli.ground import Plane
-from monovo_cli.odometry import FrameResult, Keyframe, Odometry, TrackOptions, build_keyframe
-from monovo_cli.outputs import (
-    CovarianceWriter,
-    MotionRow,
-    MotionWriter,
-    atomic_write_text,
-    load_model,
-    save_model,
-    trajectory_csv_text,
-    tum_text,
-)
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.io.atomic import atomic_write_text
+from monovo_cli.io.config import InitConfig, check_frame_size, load_init
+from monovo_cli.io.formats import CovarianceWriter, MotionRow, MotionWriter, trajectory_csv_text, tum_text
+from monovo_cli.io.frames import FrameSequence, find_init_yaml, resolve_sequence
+from monovo_cli.io.model import load_model, save_model
 
 log = logging.getLogger(__name__)
 
@@ -176,7 +169,7 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     priors = _read_prior(Path(prior)) if prior is not None else {}
     gt_poses = None
     if groundtruth is not None:
-        from monovo_cli.outputs import read_tum
+        from monovo_cli.io.formats import read_tum
 
         gt_poses = read_tum(Path(groundtruth))[1]
     if len(frames) < 2:
@@ -265,7 +258,7 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
 
 def _read_mask(path: Path, cfg: InitConfig) -> np.ndarray:
     """--mask PNG -> (H, W) bool of usable pixels (the PNG's non-zero pixels are excluded)."""
-    from monovo_cli.frames import read_gray
+    from monovo_cli.io.frames import read_gray
 
     img = read_gray(path)
     if img.shape != (cfg.camera.height, cfg.camera.width):
@@ -279,7 +272,7 @@ def _read_mask(path: Path, cfg: InitConfig) -> np.ndarray:
 
 def _read_prior(path: Path) -> dict[int, np.ndarray]:
     """--prior CSV (SPEC motion columns) -> {frame: T_{k-1}_k}."""
-    from monovo_cli.outputs import read_motion_csv
+    from monovo_cli.io.formats import read_motion_csv
 
     idx, poses, _ = read_motion_csv(path)
     return {int(k): p for k, p in zip(idx, poses)}
@@ -303,10 +296,10 @@ def _write_trajectory_plot(out_dir: Path, plane: Plane, results: list,
 
     The ground truth is drawn from its first pose, which is put at camera 0.
     """
-    from monovo_cli.geometry import se3_inv
-    from monovo_cli.outputs import read_motion_stats
-    from monovo_cli.plots import plot_trajectory
-    from monovo_cli.video import write_png_atomic
+    from monovo_cli.geometry.lie import se3_inv
+    from monovo_cli.io.formats import read_motion_stats
+    from monovo_cli.io.video import write_png_atomic
+    from monovo_cli.viz.plots import plot_trajectory
 
     if not results:
         return
@@ -321,81 +314,3 @@ def _write_trajectory_plot(out_dir: Path, plane: Plane, results: list,
     write_png_atomic(out_dir / "trajectory.png",
                      plot_trajectory(np.array(poses), plane, statuses=statuses, groundtruth=gt,
                                      title=title))
-
-
-@dataclass(frozen=True)
-class OverlaySummary:
-    frames: int
-    out: Path
-    kind: str
-    seconds: float
-
-
-def _trajectory_by_frame(path: Path, frames: FrameSequence) -> dict[int, np.ndarray]:
-    """``{frame: world_from_cam}`` from a trajectory.csv, or a TUM file matched to the frames'
-    timestamps (within 1e-6 s)."""
-    from monovo_cli.outputs import read_trajectory_csv, read_tum
-
-    if path.suffix.lower() == ".tum" or path.suffix.lower() == ".txt":
-        ts, poses = read_tum(path)
-        pos = np.searchsorted(frames.timestamps, ts)
-        out = {}
-        for t, p, T in zip(ts, pos, poses):
-            hit = [j for j in (p - 1, p) if 0 <= j < len(frames)
-                   and abs(frames.timestamps[j] - t) <= 1e-6]
-            if not hit:
-                raise InputError(f"{path}: timestamp {float(t)!r} matches no frame of {frames.dir} "
-                                 "(frame k has timestamp k, or its line in times.txt)")
-            out[hit[0]] = T
-        return out
-    idx, _, poses = read_trajectory_csv(path)
-    if idx.max() >= len(frames):
-        raise InputError(f"{path}: has frame {int(idx.max())} but {frames.dir} holds only "
-                         f"{len(frames)} frames; is it the trajectory of this sequence?")
-    return {int(k): T for k, T in zip(idx, poses)}
-
-
-def overlay_sequence(seq: Path, params: Path | None, trajectory: Path, out: str | Path, *,
-                     triangle_px: np.ndarray | None = None, points: bool = False,
-                     fps: float = 10.0, overwrite: bool = False,
-                     progress: Callable[[int, int], None] | None = None) -> OverlaySummary:
-    """``monovo overlay``: render the glued triangle into every frame of ``seq``.
-
-    ``trajectory`` is a trajectory.csv (or .tum) of the sequence; status and msd come from
-    motion.csv beside it when it is there. ``triangle_px`` (3, 2) frame-0 pixels (None: the
-    default triangle). Frames 0 .. the last posed frame are written to ``out`` (.mp4, .gif or
-    a directory of PNGs, :mod:`monovo_cli.video`); frames without a pose show no triangle.
-    """
-    from monovo_cli.outputs import read_motion_stats
-    from monovo_cli.overlay import OverlayRenderer, triangle_on_ground
-    from monovo_cli.video import open_sink
-
-    t0 = time.perf_counter()
-    frames, cfg = open_sequence(seq, params)
-    trajectory = Path(trajectory)
-    poses = _trajectory_by_frame(trajectory, frames)
-    motion = trajectory.parent / "motion.csv"
-    stats = read_motion_stats(motion) if motion.is_file() else {}
-    plane = _plane(cfg)
-    region = cfg.ground.region_or_full(cfg.camera.width, cfg.camera.height)
-    tri = triangle_on_ground(cfg.camera, plane, triangle_px, region)
-    renderer = OverlayRenderer(cfg.camera, plane, tri, region=region, points=points)
-    last = max(poses)
-    if len(poses) < len(frames):  # e.g. an interrupted run: rendered, but said
-        log.warning("%s: poses for %d of the %d frames of %s; frames without one show no "
-                    "triangle and the video ends at frame %d", trajectory, len(poses),
-                    len(frames), frames.dir, last)
-    sink = open_sink(out, fps=fps, overwrite=overwrite)
-    try:
-        for k in range(last + 1):
-            frame = frames.read(k)
-            status, msd = stats.get(k, ("start" if k == 0 else None, None))
-            sink.write(renderer.render(k, frame.image, poses.get(k), status=status, msd=msd,
-                                       last=last))
-            if progress is not None:
-                progress(k + 1, last + 1)
-        sink.close()
-    except BaseException:
-        sink.abort()
-        raise
-    return OverlaySummary(sink.frames, sink.path, sink.kind, time.perf_counter() - t0)

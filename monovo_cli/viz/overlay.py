@@ -29,16 +29,13 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from monovo_cli.core.ground import default_threshold, rectangle_corners, select_points
 from monovo_cli.errors import InputError
-from monovo_cli.estimate import sample_bilinear
-from monovo_cli.geometry import PinholeCamera, se3_inv
-from monovo_cli.ground import (
-    Plane,
-    default_threshold,
-    estimate_noise_sigma,
-    rectangle_corners,
-    select_points,
-)
+from monovo_cli.geometry.camera import PinholeCamera
+from monovo_cli.geometry.lie import se3_inv
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.image.gradients import estimate_noise_sigma
+from monovo_cli.image.sampling import sample_bilinear
 
 NEAR_FRACTION = 1e-3      # near clipping plane at this fraction of the ground distance
 FRUSTUM_MARGIN = 0.25     # clip to the view frustum widened by this share of the image per side

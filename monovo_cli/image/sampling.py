@@ -1,0 +1,58 @@
+"""Sampling an image at sub-pixel positions with OpenCV's remap (bilinear, bicubic, Lanczos-4).
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+GRID_COLUMNS = 1024  # remap maps are (rows, GRID_COLUMNS): OpenCV limits a map side to 32767
+
+INTERPOLATION = {"linear": cv2.INTER_LINEAR, "cubic": cv2.INTER_CUBIC, "lanczos4": cv2.INTER_LANCZOS4}
+
+
+# How far (px) each kernel reaches left/up and right/down of the sample's cell: a sample is
+# valid when every pixel it weights is inside the image. (Validity comes from the positions,
+# not from a NaN border: OpenCV 5's bicubic remap spreads a NaN border to neighbouring
+# outputs.)
+_REACH = {cv2.INTER_LINEAR: (0, 0), cv2.INTER_CUBIC: (1, 2), cv2.INTER_LANCZOS4: (3, 4)}
+
+
+def sample_at(image: np.ndarray, grid: np.ndarray, n: int, flag: int) -> tuple[np.ndarray, np.ndarray]:
+    """``image`` (H, W) float32 interpolated at the first ``n`` positions of ``grid``.
+
+    ``grid`` (rows, GRID_COLUMNS, 2) float32 holds pixel positions (u, v), row-major. Returns
+    the values (n,) float32 (0 where invalid) and the validity (n,) bool: every pixel the
+    kernel weights inside the image (points within a few pixels of the border are dropped).
+    """
+    lo, hi = _REACH[flag]
+    h, w = image.shape
+    inside = cv2.inRange(grid, (lo, lo), (w - 1 - hi, h - 1 - hi)).reshape(-1)[:n]
+    vals = cv2.remap(image, grid, None, flag,
+                     borderMode=cv2.BORDER_REPLICATE).reshape(-1)[:n]
+    valid = inside != 0
+    vals *= valid
+    return vals, valid
+
+
+def pixel_grid(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Positions (u, v) (N,) packed into a remap grid (rows, GRID_COLUMNS, 2) float32.
+
+    The padding, and positions that are not finite, sit far outside every image (invalid).
+    """
+    n = len(u)
+    out = np.empty((max(1, -(-n // GRID_COLUMNS)), GRID_COLUMNS, 2), np.float32)
+    flat = out.reshape(-1, 2)
+    flat[:n, 0] = u
+    flat[:n, 1] = v
+    flat[n:] = -1e6
+    np.nan_to_num(flat, copy=False, nan=-1e6, posinf=-1e6, neginf=-1e6)
+    return out
+
+
+def sample_bilinear(image: np.ndarray, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Bilinear interpolation of ``image`` (H, W) float32 at pixels (u, v) (N,): values (N,)
+    float32 (0 where invalid) and validity (N,) bool (inside [0, W-1] x [0, H-1]). OpenCV 5's
+    bilinear remap does not round the positions (no 1/32 px quantisation)."""
+    return sample_at(np.ascontiguousarray(image, dtype=np.float32), pixel_grid(u, v), len(u),
+                     cv2.INTER_LINEAR)

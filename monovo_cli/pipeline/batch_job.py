@@ -1,0 +1,367 @@
+"""One sequence of a batch: finding sequences, tracking one with its done marker, the summary table.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import logging
+import os
+import socket
+import time
+import traceback
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from monovo_cli import __version__
+from monovo_cli.errors import InputError, MonovoError, OutputError
+
+FRAMES_SUBDIR = "frames"  # as monovo_cli.frames (not imported here: it loads OpenCV)
+INIT_FILE = "init.yaml"
+DONE_FILE = "done.json"
+SUMMARY_FILE = "summary.csv"
+SUMMARY_COLUMNS = ("sequence", "frames", "status", "frames_per_s", "mean_msd", "lost", "error",
+                   "reanchored", "distance_m", "seconds")
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+                    "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
+DONE_FORMAT = 1
+
+log = logging.getLogger(__name__)
+
+#: The options of :func:`track_one` and their defaults (those of ``monovo track``).
+#: ``mask``: one PNG for every sequence (absolute path); ``prior``: a motion CSV's path
+#: relative to each sequence folder; ``covariance``: a CSV's path relative to each output
+#: folder. The rest are ``monovo track``'s options of the same names.
+DEFAULT_OPTIONS: dict[str, Any] = {
+    "levels": None,
+    "threshold": None,
+    "max_points": None,
+    "robust": "huber",
+    "reanchor_fraction": 0.6,
+    "photometric": True,
+    "max_step_m": None,
+    "max_step_deg": None,
+    "mask": None,
+    "prior": None,
+    "covariance": None,
+    "skip_bad_frames": False,
+}
+
+
+
+# --------------------------------------------------------------------------- discovery
+
+
+def _natural_parts(rel: Path) -> tuple:
+    from monovo_cli.io.frames import natural_key
+
+    return tuple(natural_key(p) for p in rel.parts)
+
+
+def available_cores() -> int:
+    """The cores this process may run on: its CPU affinity where the OS has one (a SLURM
+    allocation, ``taskset``), else ``os.cpu_count()``."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except (AttributeError, OSError):  # macOS, Windows
+        return os.cpu_count() or 1
+
+
+def is_sequence_folder(path: Path) -> bool:
+    """True when ``path`` holds a ``frames/`` directory and an ``init.yaml`` file."""
+    path = Path(path)
+    return (path / FRAMES_SUBDIR).is_dir() and (path / INIT_FILE).is_file()
+
+
+def find_sequences(root: Path, *, pattern: str | None = None,
+                   exclude: Sequence[Path] = ()) -> list[Path]:
+    """The sequences under ``root`` as paths relative to it, in natural order.
+
+    Without ``pattern``: every folder (``root`` itself included) holding ``frames/`` and
+    ``init.yaml``; the search does not descend into a sequence, nor into hidden folders or
+    the folders in ``exclude`` (e.g. the output root when it lies inside ``root``); symbolic
+    links to folders are followed (each real folder once). With ``pattern`` (a
+    :meth:`pathlib.Path.glob` pattern relative to ``root``, ``**`` allowed): every matching
+    directory outside ``exclude``, whatever it holds -- ``monovo track``'s rules apply to it
+    (a directory of frames with ``init.yaml`` beside them, or a folder holding ``frames/``).
+    A sequence folder's relative path ``.`` stands for ``root`` itself.
+
+    Raises InputError if ``root`` is not a directory or holds no sequence.
+    """
+    root = Path(root)
+    if not root.is_dir():
+        raise InputError(f"{root}: {'is not a directory' if root.exists() else 'no such directory'}"
+                         " (expected a folder of sequences, each a folder holding "
+                         f"{FRAMES_SUBDIR}/ and {INIT_FILE})")
+    excluded = {os.path.realpath(p) for p in exclude}
+    found: list[Path] = []
+    if pattern is not None:
+        if Path(pattern).is_absolute():
+            raise InputError(f"--glob {pattern!r}: expected a pattern relative to {root}")
+        try:
+            matches = list(root.glob(pattern))
+        except (ValueError, NotImplementedError) as exc:
+            raise InputError(f"--glob {pattern!r}: not a usable pattern ({exc})") from None
+        for m in matches:
+            real = os.path.realpath(m)
+            if m.is_dir() and not any(real == e or real.startswith(e + os.sep) for e in excluded):
+                found.append(m.relative_to(root))
+        what = f"no directory under {root} matches --glob {pattern!r}"
+    else:
+        seen: set[str] = set()
+        for dirpath, dirnames, _ in os.walk(root, followlinks=True):
+            real = os.path.realpath(dirpath)
+            if real in seen or real in excluded:
+                dirnames[:] = []
+                continue
+            seen.add(real)
+            here = Path(dirpath)
+            if is_sequence_folder(here):
+                found.append(here.relative_to(root))
+                dirnames[:] = []  # a sequence's subfolders are its own data
+                continue
+            dirnames[:] = [d for d in dirnames if not d.startswith(".") and d != FRAMES_SUBDIR]
+        what = (f"no sequence under {root} (a sequence is a folder holding {FRAMES_SUBDIR}/ and "
+                f"{INIT_FILE}; use --glob PATTERN for other layouts)")
+    if not found:
+        raise InputError(what)
+    return sorted(set(found), key=_natural_parts)
+
+
+def sequence_name(rel: Path) -> str:
+    """The summary's name of a sequence: its path relative to the root, '/'-separated."""
+    return Path(rel).as_posix()
+
+
+# --------------------------------------------------------------------------- one sequence
+
+
+def normalize_options(options: dict[str, Any] | None) -> dict[str, Any]:
+    """``options`` completed with :data:`DEFAULT_OPTIONS`; paths as strings.
+
+    Raises ValueError for a key that is not an option (a programming error, not bad input).
+    """
+    options = dict(options or {})
+    unknown = sorted(set(options) - set(DEFAULT_OPTIONS))
+    if unknown:
+        raise ValueError(f"unknown option(s) {', '.join(unknown)}; expected some of "
+                         f"{', '.join(DEFAULT_OPTIONS)}")
+    out = {**DEFAULT_OPTIONS, **options}
+    for key in ("mask", "prior", "covariance"):
+        if out[key] is not None:
+            out[key] = str(out[key])
+    return out
+
+
+def _track_options(o: dict[str, Any]):
+    from monovo_cli.core.estimate import EstimatorOptions
+    from monovo_cli.core.odometry import TrackOptions
+
+    return TrackOptions(levels=o["levels"], threshold=o["threshold"], max_points=o["max_points"],
+                        reanchor_fraction=o["reanchor_fraction"], max_step_m=o["max_step_m"],
+                        max_step_deg=o["max_step_deg"],
+                        estimator=EstimatorOptions(robust=o["robust"], photometric=o["photometric"]))
+
+
+def limit_threads() -> None:
+    """OpenCV on one thread (the caller runs one sequence per core). BLAS/OpenMP read their
+    thread counts from :data:`THREAD_VARIABLES` when numpy loads: set those in the worker's
+    environment before it starts (the Dask nanny sets them to 1 by default)."""
+    import cv2
+
+    cv2.setNumThreads(1)
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def _input_fingerprint(seq_dir: Path, prior: str | None) -> tuple[int, str]:
+    """(number of frames, SHA-256 over the frame names and sizes, init.yaml and the prior).
+
+    Frames are compared by name and size, not content: hashing an archive's images on every
+    resume would cost as much as reading them for tracking.
+    """
+    from monovo_cli.io.frames import FrameSequence, find_init_yaml
+
+    frames = FrameSequence(seq_dir)
+    h = hashlib.sha256()
+    for p in frames.paths:
+        h.update(f"{p.name}\0{p.stat().st_size}\n".encode())
+    for extra in (find_init_yaml(Path(seq_dir)), frames.times_path,
+                  Path(seq_dir) / prior if prior else None):
+        if extra is not None and Path(extra).is_file():
+            h.update(f"{Path(extra).name}\0{_sha256(Path(extra))}\n".encode())
+    return len(frames), h.hexdigest()
+
+
+def _count_rows(path: Path, header: bool) -> int:
+    with open(path, newline="") as f:
+        n = sum(1 for line in f if line.strip())
+    return n - 1 if header else n
+
+
+def _result(seq_dir: Path, out_dir: Path, **fields: Any) -> dict[str, Any]:
+    base = {"sequence": str(seq_dir), "out_dir": str(out_dir), "status": "failed", "frames": None,
+            "fps": None, "mean_msd": None, "lost": None, "reanchored": None, "distance_m": None,
+            "seconds": None, "error": "", "error_kind": "",
+            "worker": f"{socket.gethostname()}:{os.getpid()}"}
+    base.update(fields)
+    return base
+
+
+def track_one(seq_dir: str | Path, out_dir: str | Path, options: dict[str, Any] | None = None, *,
+              overwrite: bool = False, single_thread: bool = True) -> dict[str, Any]:
+    """Track one sequence into ``out_dir`` as ``monovo track SEQ -o OUT`` does; never raises
+    for a bad sequence.
+
+    ``seq_dir``: a sequence folder (``frames/`` and ``init.yaml``) or a directory of frames
+    with ``init.yaml`` beside them. ``options``: keys of :data:`DEFAULT_OPTIONS` (unknown
+    keys raise ValueError). ``overwrite``: replace results already in ``out_dir`` (else such
+    a folder is an error). ``single_thread``: run OpenCV on one thread (see
+    :func:`limit_threads`).
+
+    Writes motion.csv, trajectory.csv, trajectory.tum and trajectory.png, then, last,
+    ``done.json`` (what :func:`is_complete` checks). Returns a JSON-able dict: ``status``
+    ``"ok"`` with ``frames``, ``fps``, ``mean_msd`` (grey levels^2), ``lost``, ``reanchored``,
+    ``distance_m``, ``seconds``; or ``"failed"`` with ``error`` (one line) and
+    ``error_kind`` ``"input"`` (a MonovoError: a file to fix) or ``"internal"`` (anything
+    else; ``traceback`` holds the details). KeyboardInterrupt and other BaseExceptions
+    propagate.
+    """
+    opts = normalize_options(options)
+    seq_dir, out_dir = Path(seq_dir), Path(out_dir)
+    t0 = time.perf_counter()
+    try:
+        if single_thread:
+            limit_threads()
+        from monovo_cli.pipeline.track import RESULT_FILES, track_sequence
+
+        done = out_dir / DONE_FILE
+        if done.exists():
+            if not overwrite:
+                raise OutputError(f"{out_dir}: already holds results ({DONE_FILE}); use "
+                                  "overwrite (--overwrite / --resume) or another output folder")
+            done.unlink()
+        summary = track_sequence(
+            seq_dir, None, out_dir, _track_options(opts), overwrite=overwrite,
+            skip_bad_frames=opts["skip_bad_frames"],
+            mask=Path(opts["mask"]) if opts["mask"] else None,
+            prior=seq_dir / opts["prior"] if opts["prior"] else None,
+            covariance=out_dir / opts["covariance"] if opts["covariance"] else None)
+        n_frames, fingerprint = _input_fingerprint(seq_dir, opts["prior"])
+        rows = {"motion.csv": (_count_rows(out_dir / "motion.csv", True), n_frames - 1),
+                "trajectory.csv": (_count_rows(out_dir / "trajectory.csv", True), n_frames),
+                "trajectory.tum": (_count_rows(out_dir / "trajectory.tum", False), n_frames)}
+        for name, (got, expected) in rows.items():
+            if got != expected:
+                raise RuntimeError(f"{out_dir / name}: {got} rows after tracking, expected "
+                                   f"{expected} for {n_frames} frames")
+        names = list(RESULT_FILES) + ([opts["covariance"]] if opts["covariance"] else [])
+        files = {n: {"bytes": (out_dir / n).stat().st_size, "sha256": _sha256(out_dir / n)}
+                 for n in names if (out_dir / n).is_file()}
+        stats = {"frames": summary.frames, "fps": summary.fps, "mean_msd": summary.mean_msd,
+                 "lost": summary.lost, "reanchored": summary.reanchored,
+                 "distance_m": summary.distance_m, "seconds": summary.seconds}
+        marker = {"format": DONE_FORMAT, "monovo": __version__, "frames": n_frames,
+                  "inputs_sha256": fingerprint, "options": opts, "result": stats, "files": files}
+        from monovo_cli.io.atomic import atomic_write_text
+
+        atomic_write_text(done, json.dumps(marker, indent=1, sort_keys=True) + "\n")
+        return _result(seq_dir, out_dir, status="ok", **stats)
+    except MonovoError as exc:
+        log.debug("%s failed", seq_dir, exc_info=True)
+        return _result(seq_dir, out_dir, error=str(exc), error_kind="input",
+                       seconds=time.perf_counter() - t0)
+    except Exception as exc:
+        log.debug("%s failed", seq_dir, exc_info=True)
+        return _result(seq_dir, out_dir, error=f"internal error: {type(exc).__name__}: {exc}",
+                       error_kind="internal", traceback=traceback.format_exc(),
+                       seconds=time.perf_counter() - t0)
+
+
+def is_complete(seq_dir: str | Path, out_dir: str | Path,
+                options: dict[str, Any] | None = None) -> tuple[bool, str]:
+    """Whether ``out_dir`` holds the finished results of ``seq_dir`` tracked with ``options``.
+
+    Complete means: ``done.json`` (written by :func:`track_one` after every other output)
+    is there and readable; it was written for the same options (:func:`normalize_options`)
+    and the same inputs (number of frames, frame names and sizes, init.yaml, times.txt and
+    the prior); and every file it lists is there with the size and SHA-256 it recorded --
+    motion.csv with one row per frame >= 1, trajectory.csv and .tum with one per frame, as
+    checked before the marker was written. Returns ``(complete, reason)``, the reason
+    saying what is missing or different.
+    """
+    seq_dir, out_dir = Path(seq_dir), Path(out_dir)
+    opts = normalize_options(options)
+    done = out_dir / DONE_FILE
+    if not done.is_file():
+        return False, f"no {DONE_FILE}"
+    try:
+        marker = json.loads(done.read_text())
+        if marker.get("format") != DONE_FORMAT:
+            return False, f"{DONE_FILE} of another format ({marker.get('format')!r})"
+        if marker.get("options") != opts:
+            return False, "tracked with other options"
+        n_frames, fingerprint = _input_fingerprint(seq_dir, opts["prior"])
+        if (marker.get("frames"), marker.get("inputs_sha256")) != (n_frames, fingerprint):
+            return False, "the sequence's frames, init.yaml, times.txt or prior changed"
+        for name, want in marker["files"].items():
+            path = out_dir / name
+            if not path.is_file():
+                return False, f"{name} is missing"
+            if path.stat().st_size != want["bytes"] or _sha256(path) != want["sha256"]:
+                return False, f"{name} changed since it was written"
+        for name in ("motion.csv", "trajectory.csv", "trajectory.tum"):
+            if name not in marker["files"]:
+                return False, f"{DONE_FILE} does not list {name}"
+    except (OSError, ValueError, KeyError, TypeError, AttributeError, MonovoError) as exc:
+        return False, f"{DONE_FILE} or the inputs cannot be checked ({type(exc).__name__}: {exc})"
+    return True, "complete"
+
+
+def done_result(seq_dir: Path, out_dir: Path) -> dict[str, Any]:
+    """The result dict of a complete sequence (status ``skipped``), from its ``done.json``."""
+    stats = json.loads((Path(out_dir) / DONE_FILE).read_text())["result"]
+    return _result(seq_dir, out_dir, status="skipped", worker="", **stats)
+
+
+# --------------------------------------------------------------------------- summary
+
+
+def _cell(value: Any, spec: str) -> str:
+    return "" if value is None else format(value, spec)
+
+
+def summary_rows(results: Sequence[dict[str, Any]]) -> list[list[str]]:
+    """``summary.csv`` rows (:data:`SUMMARY_COLUMNS`) of result dicts whose ``sequence`` is
+    the name to show."""
+    rows = []
+    for r in results:
+        error = " ".join(str(r.get("error") or "").split())  # one line, whatever it held
+        rows.append([r["sequence"], _cell(r.get("frames"), "d"), r["status"],
+                     _cell(r.get("fps"), ".2f"), _cell(r.get("mean_msd"), ".4f"),
+                     _cell(r.get("lost"), "d"), error, _cell(r.get("reanchored"), "d"),
+                     _cell(r.get("distance_m"), ".4f"), _cell(r.get("seconds"), ".2f")])
+    return rows
+
+
+def write_summary(path: Path, results: Sequence[dict[str, Any]]) -> None:
+    """Write ``summary.csv`` atomically: a header, then one row per result (see
+    :func:`summary_rows`); status ``ok``, ``skipped`` (complete from an earlier run, its
+    figures from then), ``failed`` (``error`` says why) or ``pending`` (not run: the batch
+    was interrupted)."""
+    from monovo_cli.io.atomic import atomic_write_text
+
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(SUMMARY_COLUMNS)
+    w.writerows(summary_rows(results))
+    atomic_write_text(Path(path), buf.getvalue())

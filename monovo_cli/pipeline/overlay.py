@@ -1,0 +1,94 @@
+"""The overlay command's pipeline: a sequence and a trajectory in, the glued-triangle video out.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from monovo_cli.errors import InputError
+from monovo_cli.io.frames import FrameSequence
+from monovo_cli.pipeline.batch import log
+from monovo_cli.pipeline.track import _plane, open_sequence
+
+
+@dataclass(frozen=True)
+class OverlaySummary:
+    frames: int
+    out: Path
+    kind: str
+    seconds: float
+
+
+def _trajectory_by_frame(path: Path, frames: FrameSequence) -> dict[int, np.ndarray]:
+    """``{frame: world_from_cam}`` from a trajectory.csv, or a TUM file matched to the frames'
+    timestamps (within 1e-6 s)."""
+    from monovo_cli.io.formats import read_trajectory_csv, read_tum
+
+    if path.suffix.lower() == ".tum" or path.suffix.lower() == ".txt":
+        ts, poses = read_tum(path)
+        pos = np.searchsorted(frames.timestamps, ts)
+        out = {}
+        for t, p, T in zip(ts, pos, poses):
+            hit = [j for j in (p - 1, p) if 0 <= j < len(frames)
+                   and abs(frames.timestamps[j] - t) <= 1e-6]
+            if not hit:
+                raise InputError(f"{path}: timestamp {float(t)!r} matches no frame of {frames.dir} "
+                                 "(frame k has timestamp k, or its line in times.txt)")
+            out[hit[0]] = T
+        return out
+    idx, _, poses = read_trajectory_csv(path)
+    if idx.max() >= len(frames):
+        raise InputError(f"{path}: has frame {int(idx.max())} but {frames.dir} holds only "
+                         f"{len(frames)} frames; is it the trajectory of this sequence?")
+    return {int(k): T for k, T in zip(idx, poses)}
+
+
+def overlay_sequence(seq: Path, params: Path | None, trajectory: Path, out: str | Path, *,
+                     triangle_px: np.ndarray | None = None, points: bool = False,
+                     fps: float = 10.0, overwrite: bool = False,
+                     progress: Callable[[int, int], None] | None = None) -> OverlaySummary:
+    """``monovo overlay``: render the glued triangle into every frame of ``seq``.
+
+    ``trajectory`` is a trajectory.csv (or .tum) of the sequence; status and msd come from
+    motion.csv beside it when it is there. ``triangle_px`` (3, 2) frame-0 pixels (None: the
+    default triangle). Frames 0 .. the last posed frame are written to ``out`` (.mp4, .gif or
+    a directory of PNGs, :mod:`monovo_cli.video`); frames without a pose show no triangle.
+    """
+    from monovo_cli.io.formats import read_motion_stats
+    from monovo_cli.io.video import open_sink
+    from monovo_cli.viz.overlay import OverlayRenderer, triangle_on_ground
+
+    t0 = time.perf_counter()
+    frames, cfg = open_sequence(seq, params)
+    trajectory = Path(trajectory)
+    poses = _trajectory_by_frame(trajectory, frames)
+    motion = trajectory.parent / "motion.csv"
+    stats = read_motion_stats(motion) if motion.is_file() else {}
+    plane = _plane(cfg)
+    region = cfg.ground.region_or_full(cfg.camera.width, cfg.camera.height)
+    tri = triangle_on_ground(cfg.camera, plane, triangle_px, region)
+    renderer = OverlayRenderer(cfg.camera, plane, tri, region=region, points=points)
+    last = max(poses)
+    if len(poses) < len(frames):  # e.g. an interrupted run: rendered, but said
+        log.warning("%s: poses for %d of the %d frames of %s; frames without one show no "
+                    "triangle and the video ends at frame %d", trajectory, len(poses),
+                    len(frames), frames.dir, last)
+    sink = open_sink(out, fps=fps, overwrite=overwrite)
+    try:
+        for k in range(last + 1):
+            frame = frames.read(k)
+            status, msd = stats.get(k, ("start" if k == 0 else None, None))
+            sink.write(renderer.render(k, frame.image, poses.get(k), status=status, msd=msd,
+                                       last=last))
+            if progress is not None:
+                progress(k + 1, last + 1)
+        sink.close()
+    except BaseException:
+        sink.abort()
+        raise
+    return OverlaySummary(sink.frames, sink.path, sink.kind, time.perf_counter() - t0)

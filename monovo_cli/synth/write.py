@@ -1,0 +1,323 @@
+"""Synthetic ground sequences with exact ground truth (``monovo synth``).
+
+A pinhole camera looks at a textured plane (the ground, ``z_G = 0`` of a ground frame G
+with z up). Every frame is rendered through the exact plane-induced homography from
+ground coordinates to pixels:
+
+* the texture is a periodic (seamlessly tiling) grey image with ``metres_per_texel``
+  metres per texel, sampled bilinearly with wrap-around, through a mip-map pyramid
+  (trilinear, level chosen per pixel from the local footprint of the homography), so
+  distant, foreshortened ground does not alias;
+* each image is rendered at ``SUPERSAMPLE`` times its resolution and area-averaged down,
+  which integrates every pixel over its area. Supersampled pixel ``(i, j)`` has its
+  centre at original pixel coordinate ``((i + 0.5)/s - 0.5, (j + 0.5)/s - 0.5)``, so the
+  top-left original pixel centre stays at (0, 0) (SPEC);
+* pixels whose ray misses the plane (above the horizon) get a plain sky value;
+* optional exposure change (gain, bias), then Gaussian noise, rounding, 8-bit PNG.
+
+Poses: ``g_from_cam_k`` maps camera-k points to G. The SPEC's world frame is camera 0,
+so the ground truth is ``T_0_k = inv(g_from_cam_0) @ g_from_cam_k`` and the relative
+motion ``T_{k-1}_k = inv(g_from_cam_{k-1}) @ g_from_cam_k``. The plane in camera 0 is
+``{X : n . X = d}`` with ``n = -R_0^T e_z`` (pointing from the camera to the ground) and
+``d`` the camera height.
+
+Presets:
+
+* ``drive`` -- a rover camera on a 1.5 m mast pitched 45 deg down, driving ~5 cm/frame
+  with smooth turns and small roll/pitch/height wobble; one sequence.
+* ``pairs`` -- the paper's experiment: camera 100 m from the plane, optical axis 25 deg
+  (+- 5 deg) off the plane normal, one random motion per pair (rotation +-5 deg and
+  translation +-10 m per axis); one 2-frame sequence per pair in ``pair_NNNN/``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import yaml
+
+from monovo_cli import __version__
+from monovo_cli.errors import InputError, OutputError
+from monovo_cli.geometry.camera import PinholeCamera
+from monovo_cli.geometry.lie import make_pose, se3_inv
+from monovo_cli.io.atomic import atomic_write_text
+from monovo_cli.io.formats import MotionRow, fmt, motion_csv_text, tum_text
+from monovo_cli.synth.motion import (
+    DRIVE_MAST_HEIGHT,
+    DRIVE_PITCH_DEG,
+    DRIVE_SPEED_VARIATION,
+    DRIVE_STEP,
+    PAIR_DISTANCE,
+    PAIR_EXTRA_TILT_DEG,
+    PAIR_MAX_TRANSLATION,
+    PAIR_TILT_DEG,
+    _smooth,
+    body_from_camera,
+    drive_poses,
+    pair_poses,
+)
+from monovo_cli.synth.render import (
+    SUPERSAMPLE,
+    GroundRenderer,
+    _grid,
+    default_camera,
+    finish_frame,
+    footprint,
+    ground_in_camera,
+    ground_region,
+    plane_homography,
+)
+from monovo_cli.synth.texture import (
+    TEXTURE_MEAN,
+    TEXTURE_STD,
+    GroundTexture,
+    load_texture,
+    procedural_texture,
+    procedural_texture_size,
+)
+
+PRESETS = ("drive", "pairs")
+MIN_SIZE = 32
+MAX_SIZE = 8192
+
+EXPOSURE_GAIN = 0.2  # gain in 1 +- this
+EXPOSURE_BIAS = 15.0  # grey levels
+
+
+@dataclass(frozen=True)
+class SynthSummary:
+    out_dir: Path
+    sequences: int  # 1 for drive, N for pairs
+    frames_per_sequence: int
+    distance_m: float  # camera path length (drive) or sum of pair translations (pairs)
+
+
+# --------------------------------------------------------------------------- outputs
+
+
+def _init_yaml(cam: PinholeCamera, g_from_cam0: np.ndarray, region: list[int]) -> str:
+    n, d = ground_in_camera(g_from_cam0)
+    data = {
+        "camera": {"width": int(cam.width), "height": int(cam.height), "fx": float(cam.fx),
+                   "fy": float(cam.fy), "cx": float(cam.cx), "cy": float(cam.cy)},
+        "ground": {"normal": [float(v) + 0.0 for v in n], "distance": float(d),
+                   "region": [int(v) for v in region]},
+    }
+    return yaml.safe_dump(data, default_flow_style=None, sort_keys=False)
+
+
+def _write_sequence(seq_dir: Path, cam: PinholeCamera, poses: list[np.ndarray],
+                    region: list[int], params: dict,
+                    photometric: list[tuple[float, float]] | None) -> None:
+    """init.yaml, ground truth, synth.yaml (+ photometric.csv) of one sequence; frames are
+    written by the caller as they are rendered."""
+    inv0 = se3_inv(poses[0])
+    traj = [np.eye(4)] + [inv0 @ g for g in poses[1:]]
+    rows = [MotionRow(frame=k, prev_from_cur=se3_inv(poses[k - 1]) @ poses[k], msd=0.0,
+                      iterations=0, points=0, status="ok") for k in range(1, len(poses))]
+    atomic_write_text(seq_dir / "init.yaml", _init_yaml(cam, poses[0], region))
+    atomic_write_text(seq_dir / "groundtruth.tum", tum_text([float(k) for k in range(len(poses))],
+                                                            traj))
+    atomic_write_text(seq_dir / "groundtruth_motion.csv", motion_csv_text(rows))
+    atomic_write_text(seq_dir / "synth.yaml",
+                      yaml.safe_dump(params, default_flow_style=None, sort_keys=False))
+    if photometric is not None:
+        lines = ["frame,gain,bias"] + [f"{k},{fmt(g)},{fmt(b)}"
+                                       for k, (g, b) in enumerate(photometric)]
+        atomic_write_text(seq_dir / "photometric.csv", "\n".join(lines) + "\n")
+
+
+def _write_png(path: Path, img: np.ndarray) -> None:
+    try:
+        ok = cv2.imwrite(str(path), img)
+    except cv2.error:
+        ok = False
+    if not ok:
+        raise OutputError(f"{path}: cannot write PNG")
+
+
+def _make_dir(path: Path) -> None:
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot create directory ({exc.strerror or exc})") from None
+
+
+# --------------------------------------------------------------------------- entry point
+
+
+def _check_number(name: str, value, *, low: float, high: float = math.inf,
+                  integer: bool = False) -> None:
+    kind = "a whole number" if integer else "a number"
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise InputError(f"{name} {value!r}: must be {kind}")
+    if integer and int(value) != value:
+        raise InputError(f"{name} {value!r}: must be {kind}")
+    if not math.isfinite(float(value)) or not (low <= float(value) <= high):
+        rng = f">= {low:g}" if high == math.inf else f"between {low:g} and {high:g}"
+        raise InputError(f"{name} {value!r}: must be {kind} {rng}")
+
+
+def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = None,
+               size: tuple[int, int] | None = None, noise_var: float = 10.0, seed: int = 0,
+               texture: Path | None = None, max_translation: float | None = None,
+               max_rotation_deg: float = 5.0, exposure: bool = False, shadow: float = 0.0,
+               low_texture: bool = False, clean_frame0: bool = False,
+               progress: Callable[[int, int], None] | None = None) -> SynthSummary:
+    """Write a synthetic sequence (``drive``) or set of 2-frame sequences (``pairs``).
+
+    ``frames``: frames of the drive (default 300) or number of pairs (default 100).
+    ``size``: ``(width, height)`` px (default 512x512 drive, 688x544 pairs).
+    ``max_translation``: pairs -- per-axis translation bound, m (default 10);
+    drive -- peak forward step per frame, m (default 0.065 = 0.05 * 1.3).
+    ``max_rotation_deg``: pairs -- per-axis bound of the rotation vector, degrees; the
+    drive's turns are fixed (yaw rate up to 1 deg/frame) and ignore it.
+    ``exposure``: vary gain (0.8..1.2) and bias (+-15 grey levels) per frame (smoothly along
+    a drive, independently per pair frame); written to ``photometric.csv``.
+    ``shadow``: darken (x0.5) this fraction of the image's bottom rows in every frame, a
+    shadow fixed to the camera like the rover's own. ``low_texture``: a smooth ground with
+    a quarter of the contrast and no fine detail. ``clean_frame0``: frame 0 (of the drive,
+    of every pair) without noise, only rounded -- the paper's synthetic experiment, where the
+    ground's texture is exactly known; the other frames' noise is the same as without it.
+    ``progress(done, total)`` is called after each drive frame / each pair.
+    Raises InputError for bad arguments, OutputError if ``out_dir`` exists and is not empty
+    or cannot be written.
+    """
+    out_dir = Path(out_dir)
+    if preset not in PRESETS:
+        raise InputError(f"--preset {preset!r}: unknown preset, choose one of {', '.join(PRESETS)}")
+    drive = preset == "drive"
+    if frames is None:
+        frames = 300 if drive else 100
+    _check_number("--frames", frames, low=2 if drive else 1, integer=True)
+    frames = int(frames)
+    if size is None:
+        size = (512, 512) if drive else (688, 544)
+    if (not isinstance(size, (tuple, list)) or len(size) != 2
+            or not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in size)):
+        raise InputError(f"--size {size!r}: must be two whole numbers WIDTHxHEIGHT")
+    width, height = int(size[0]), int(size[1])
+    if min(width, height) < MIN_SIZE or max(width, height) > MAX_SIZE:
+        raise InputError(f"--size {width}x{height}: width and height must be between "
+                         f"{MIN_SIZE} and {MAX_SIZE} px")
+    _check_number("--noise-var", noise_var, low=0.0)
+    _check_number("--seed", seed, low=0, high=2**63 - 1, integer=True)
+    seed = int(seed)
+    if max_translation is None:
+        max_translation = DRIVE_STEP * (1.0 + DRIVE_SPEED_VARIATION) if drive else PAIR_MAX_TRANSLATION
+    _check_number("max_translation", max_translation, low=0.0,
+                  high=1.0 if drive else 0.5 * PAIR_DISTANCE)
+    _check_number("max_rotation_deg", max_rotation_deg, low=0.0, high=30.0)
+    _check_number("--shadow", shadow, low=0.0, high=1.0)
+    if out_dir.exists():
+        if not out_dir.is_dir():
+            raise OutputError(f"{out_dir}: exists and is not a directory")
+        if any(out_dir.iterdir()):
+            raise OutputError(f"{out_dir}: already exists and is not empty")
+
+    cam = default_camera(width, height)
+    ss = np.random.SeedSequence(seed)
+    motion_rng, noise_rng, photo_rng = (np.random.default_rng(s) for s in ss.spawn(3))
+
+    # Texture scale: a texel is ~0.85 px at the nearest visible ground of the nominal view.
+    if drive:
+        nominal = make_pose(body_from_camera(math.radians(DRIVE_PITCH_DEG)),
+                            np.array([0.0, 0.0, DRIVE_MAST_HEIGHT]))
+    else:
+        nominal = make_pose(body_from_camera(math.radians(90.0 - PAIR_TILT_DEG)),
+                            np.array([0.0, 0.0, PAIR_DISTANCE]))
+    x, y = _grid(width, height)
+    metres_per_texel = 0.85 * float(np.min(footprint(plane_homography(cam, nominal), x, y)))
+    if texture is not None:
+        tex_image = load_texture(Path(texture))
+        texture_desc = str(Path(texture).resolve())
+    else:
+        tex_image = procedural_texture(procedural_texture_size(width, height), seed)
+        texture_desc = None
+    if low_texture:
+        n_pad = 16
+        smooth = cv2.GaussianBlur(np.pad(tex_image, n_pad, mode="wrap"), (0, 0), 4.0)
+        smooth = smooth[n_pad:-n_pad, n_pad:-n_pad]
+        tex_image = ((smooth - smooth.mean()) * (0.25 * TEXTURE_STD / max(float(smooth.std()), 1e-6))
+                     + TEXTURE_MEAN).astype(np.float32)
+    tex = GroundTexture(tex_image, metres_per_texel)
+    period = np.array(tex.shape[::-1], dtype=float) * metres_per_texel  # (u, v) metres
+
+    params = {
+        "generator": f"monovo {__version__} synth",
+        "preset": preset, "seed": seed, "frames": frames, "size": [width, height],
+        "noise_var": float(noise_var), "max_translation": float(max_translation),
+        "max_rotation_deg": float(max_rotation_deg), "exposure": bool(exposure),
+        "texture": texture_desc, "shadow": float(shadow), "low_texture": bool(low_texture),
+        "clean_frame0": bool(clean_frame0),
+        "texture_texels": [int(tex.shape[1]), int(tex.shape[0])],
+        "metres_per_texel": metres_per_texel, "supersample": SUPERSAMPLE,
+    }
+    # All geometry first (it can still reject the arguments), then write.
+    sequences: list[tuple[Path, list[np.ndarray], list[tuple[float, float]] | None, dict]] = []
+    if drive:
+        origin = tuple(motion_rng.uniform(0.0, 1.0, 2) * period)
+        poses = drive_poses(frames, motion_rng, peak_step=float(max_translation), origin=origin)
+        photometric = None
+        if exposure:
+            gains = 1.0 + EXPOSURE_GAIN * _smooth(photo_rng, frames, (30.0, 200.0))
+            biases = EXPOSURE_BIAS * _smooth(photo_rng, frames, (30.0, 200.0))
+            photometric = [(float(g), float(b)) for g, b in zip(gains, biases)]
+        params.update(mast_height=DRIVE_MAST_HEIGHT, pitch_deg=DRIVE_PITCH_DEG)
+        sequences.append((out_dir, poses, photometric, params))
+    else:
+        params.update(plane_distance=PAIR_DISTANCE, tilt_deg=PAIR_TILT_DEG,
+                      extra_tilt_deg=PAIR_EXTRA_TILT_DEG)
+        for i in range(frames):
+            origin = tuple(motion_rng.uniform(0.0, 1.0, 2) * period)
+            g0, g1 = pair_poses(cam, motion_rng, max_translation=float(max_translation),
+                                max_rotation_deg=float(max_rotation_deg), origin=origin)
+            photometric = None
+            if exposure:
+                photometric = [(float(photo_rng.uniform(1 - EXPOSURE_GAIN, 1 + EXPOSURE_GAIN)),
+                                float(photo_rng.uniform(-EXPOSURE_BIAS, EXPOSURE_BIAS)))
+                               for _ in range(2)]
+            sequences.append((out_dir / f"pair_{i:04d}", [g0, g1], photometric,
+                              dict(params, pair=i)))
+    regions = []
+    for _, poses, _, _ in sequences:
+        region = ground_region(cam, poses[0])
+        if region is None:
+            raise InputError(f"--size {width}x{height}: the camera sees no ground at frame 0")
+        regions.append(region)
+
+    _make_dir(out_dir)
+    if not drive:
+        atomic_write_text(out_dir / "synth.yaml",
+                          yaml.safe_dump(params, default_flow_style=None, sort_keys=False))
+    renderer = GroundRenderer(cam, tex)
+    distance = 0.0
+    for i, ((seq_dir, poses, photometric, seq_params), region) in enumerate(
+            zip(sequences, regions)):
+        frames_dir = seq_dir / "frames"
+        _make_dir(frames_dir)
+        for k, g in enumerate(poses):
+            gain, bias = photometric[k] if photometric else (1.0, 0.0)
+            ground = renderer.render(g)
+            if shadow > 0:
+                ground[int(round(height * (1.0 - shadow))):] *= np.float32(0.5)
+            img = finish_frame(ground, noise_rng, float(noise_var), gain, bias)
+            if clean_frame0 and k == 0:  # (the noise was still drawn: frame 1's stays the same)
+                img = finish_frame(ground, noise_rng, 0.0, gain, bias)
+            _write_png(frames_dir / f"frame_{k:06d}.png", img)
+            if drive and progress is not None:
+                progress(k + 1, frames)
+        _write_sequence(seq_dir, cam, poses, region, seq_params, photometric)
+        distance += float(sum(np.linalg.norm(poses[k][:3, 3] - poses[k - 1][:3, 3])
+                              for k in range(1, len(poses))))
+        if not drive and progress is not None:
+            progress(i + 1, frames)
+    return SynthSummary(out_dir=out_dir, sequences=len(sequences),
+                        frames_per_sequence=len(sequences[0][1]), distance_m=distance)
+
+
