@@ -26,7 +26,13 @@ def _exp_coefficients(theta2: float) -> tuple[float, float, float]:
         return 1.0, 0.5, 1.0 / 6.0
     theta = math.sqrt(theta2)
     sin_t = math.sin(theta)
-    return sin_t / theta, (1.0 - math.cos(theta)) / theta2, (theta - sin_t) / (theta2 * theta)
+    half = math.sin(0.5 * theta) / (0.5 * theta)
+    b = 0.5 * half * half  # (1 - cos t) / t^2 without the cancellation of 1 - cos t
+    if theta2 < 1e-2:  # t - sin t cancels: its series, truncation below 3e-17 relative
+        c = 1.0 / 6.0 - theta2 * (1.0 / 120.0 - theta2 * (1.0 / 5040.0 - theta2 / 362880.0))
+    else:
+        c = (theta - sin_t) / (theta2 * theta)
+    return sin_t / theta, b, c
 
 
 def so3_exp(w: np.ndarray) -> np.ndarray:
