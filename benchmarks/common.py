@@ -173,11 +173,11 @@ def pair_scenes(pairs_dir: Path):
         cfg = load_init(d / "init.yaml")
         n, dist = ground_in_camera(g0)
         if (not np.allclose(se3_inv(g0) @ g1, gt[0], atol=1e-9)
-                or not np.allclose(n, cfg.ground.normal_array(), atol=1e-9)
-                or abs(dist - cfg.ground.distance) > 1e-9):
+                or not np.allclose(n, cfg.plane.normal, atol=1e-9)
+                or abs(dist - cfg.plane.distance) > 1e-9):
             raise RuntimeError(f"{d}: replayed pose differs from the ground truth synth wrote; "
                                "benchmarks.common.pair_scenes needs updating")
-        scenes.append(PairScene(d, g0, g1, tuple(int(v) for v in cfg.ground.region)))
+        scenes.append(PairScene(d, g0, g1, tuple(int(v) for v in cfg.region)))
     return cam, tex, scenes
 
 

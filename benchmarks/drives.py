@@ -32,7 +32,6 @@ import numpy as np  # noqa: E402
 
 from benchmarks.common import final_drift, machine, motion_errors  # noqa: E402
 from monovo_cli.core.odometry import TrackOptions, track  # noqa: E402
-from monovo_cli.geometry.plane import Plane  # noqa: E402
 from monovo_cli.io.config import load_init  # noqa: E402
 from monovo_cli.io.formats import read_motion_csv, read_tum  # noqa: E402
 from monovo_cli.io.frames import FrameSequence  # noqa: E402
@@ -114,9 +113,9 @@ def std_honesty(root: Path, n_pairs: int, seed: int) -> np.ndarray:
     for pair in sorted((root / "pairs").glob("pair_*")):
         cfg = load_init(pair / "init.yaml")
         fr = FrameSequence(pair / "frames")
-        plane = Plane(np.asarray(cfg.ground.normal_array()), cfg.ground.distance)
+        plane = cfg.plane
         res = list(track(((f.index, f.timestamp, f.image) for f in fr), cfg.camera, plane,
-                         cfg.ground.region, TrackOptions()))
+                         cfg.region, TrackOptions()))
         _, gt, _ = read_motion_csv(pair / "groundtruth_motion.csv")
         e = motion_errors(res[1].prev_from_cur, gt[0])
         e[3:] = np.radians(e[3:])

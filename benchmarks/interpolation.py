@@ -27,7 +27,6 @@ from benchmarks.common import AXES, axis_table, machine, motion_errors, one_core
 from monovo_cli.core.estimate import EstimatorOptions, residuals
 from monovo_cli.core.odometry import ALL_POINTS, TrackOptions, build_keyframe, track
 from monovo_cli.geometry.lie import se3_inv
-from monovo_cli.geometry.plane import Plane
 from monovo_cli.image.sampling import INTERPOLATION
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_motion_csv
@@ -54,11 +53,11 @@ def main() -> None:
         for pair in sorted(p for p in root.iterdir() if p.name.startswith("pair_")):
             cfg = load_init(pair / "init.yaml")
             frames = [f.image for f in FrameSequence(pair / "frames")]
-            plane = Plane(np.asarray(cfg.ground.normal_array()), cfg.ground.distance)
+            plane = cfg.plane
             _, gt, _ = read_motion_csv(pair / "groundtruth_motion.csv")
             cur_from_key = se3_inv(gt[0])
             for name, cap in sets.items():
-                key = build_keyframe(0, frames[0], cfg.camera, plane, cfg.ground.region, np.eye(4),
+                key = build_keyframe(0, frames[0], cfg.camera, plane, cfg.region, np.eye(4),
                                      TrackOptions(max_points=cap))
                 level = key.levels[0]
                 counts[name] += len(level.points)
@@ -71,7 +70,7 @@ def main() -> None:
             for method in INTERPOLATION:
                 opts = TrackOptions(estimator=EstimatorOptions(interpolation=method))
                 res = list(track([(i, float(i), f) for i, f in enumerate(frames)], cfg.camera,
-                                 plane, cfg.ground.region, opts))
+                                 plane, cfg.region, opts))
                 errs[method].append(motion_errors(res[1].prev_from_cur, gt[0]))
     print(f"{args.pairs} noise-free pairs, 688x544, seed {args.seed}: frame-1 intensity at the "
           "true motion minus the point's frame-0 intensity, RMS over all points (grey levels)\n")

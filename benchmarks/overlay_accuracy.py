@@ -23,7 +23,6 @@ import numpy as np
 
 from benchmarks.common import drive_arguments, machine
 from monovo_cli.core.odometry import TrackOptions
-from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_motion_csv, read_trajectory_csv, read_tum
 from monovo_cli.pipeline.overlay import overlay_sequence
@@ -49,8 +48,8 @@ def measure(root: Path, frames: int, size: tuple[int, int], seed: int, noise_var
     t_overlay = time.perf_counter() - t0
 
     cfg = load_init(seq / "init.yaml")
-    plane = Plane(cfg.ground.normal_array(), cfg.ground.distance)
-    region = cfg.ground.region_or_full(cfg.camera.width, cfg.camera.height)
+    plane = cfg.plane
+    region = cfg.region
     _, _, est = read_trajectory_csv(out / "trajectory.csv")
     _, gt = read_tum(seq / "groundtruth.tum")
     _, _, status = read_motion_csv(out / "motion.csv")

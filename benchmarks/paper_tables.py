@@ -37,7 +37,6 @@ from benchmarks.common import (
     track_options,
 )
 from monovo_cli.core.odometry import TrackOptions, track
-from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_motion_csv
 from monovo_cli.io.frames import FrameSequence
@@ -60,9 +59,9 @@ def run_pairs(root: Path, n_pairs: int, noise_var: float, seed: int, options: Tr
         frames = FrameSequence(pair / "frames")
         cfg = load_init(pair / "init.yaml")
         imgs = [(f.index, f.timestamp, f.image) for f in frames]
-        plane = Plane(np.asarray(cfg.ground.normal_array()), cfg.ground.distance)
+        plane = cfg.plane
         t0, c0 = time.perf_counter(), time.process_time()
-        res = list(track(imgs, cfg.camera, plane, cfg.ground.region, options))
+        res = list(track(imgs, cfg.camera, plane, cfg.region, options))
         secs.append(time.perf_counter() - t0)
         cpu.append(time.process_time() - c0)
         _, gt, _ = read_motion_csv(pair / "groundtruth_motion.csv")

@@ -223,7 +223,7 @@ def _read_pair(pair: Path):
     frames = sorted((pair / "frames").glob("*.png"))
     imgs = [cv2.imread(str(p), cv2.IMREAD_GRAYSCALE) for p in frames]
     _, gt, _ = read_motion_csv(pair / "groundtruth_motion.csv")
-    plane = Plane(cfg.ground.normal_array(), float(cfg.ground.distance))
+    plane = cfg.plane
     return cfg.camera.K, plane, imgs, gt[0]
 
 
@@ -242,7 +242,7 @@ def peer_on_drive(peer, seq: Path) -> MethodResult:
     """Frame-to-frame motions of a ``synth --preset drive`` folder, chained; decode timed."""
     cfg = load_init(seq / "init.yaml")
     K = cfg.camera.K
-    plane = Plane(cfg.ground.normal_array(), float(cfg.ground.distance))
+    plane = cfg.plane
     paths = sorted((seq / "frames").glob("*.png"))
     _, gt, _ = read_motion_csv(seq / "groundtruth_motion.csv")
     _, gt_traj = read_tum(seq / "groundtruth.tum")

@@ -45,7 +45,6 @@ from pathlib import Path
 from benchmarks.common import Stopwatch, final_drift, load, machine, one_core
 from benchmarks.peers import EccPeer, peer_on_drive
 from monovo_cli.core.odometry import TrackOptions, track
-from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_tum
 from monovo_cli.io.frames import FrameSequence
@@ -91,9 +90,9 @@ def estimator_only(seq: Path) -> tuple[float, float]:
     frames = FrameSequence(seq)
     cfg = load_init(seq / "init.yaml")
     imgs = [(f.index, f.timestamp, f.image) for f in frames]
-    plane = Plane(cfg.ground.normal_array(), float(cfg.ground.distance))
+    plane = cfg.plane
     with Stopwatch() as watch:
-        n = sum(1 for _ in track(imgs, cfg.camera, plane, cfg.ground.region, TrackOptions()))
+        n = sum(1 for _ in track(imgs, cfg.camera, plane, cfg.region, TrackOptions()))
     return n / watch.wall, n / watch.cpu
 
 

@@ -15,14 +15,8 @@ from hypothesis import strategies as st
 
 from monovo_cli.errors import ConfigError, MonovoError
 from monovo_cli.geometry.camera import PinholeCamera
-from monovo_cli.io.config import (
-    GroundPlane,
-    InitConfig,
-    check_frame_size,
-    dump_init,
-    load_init,
-    normal_from_pitch_roll,
-)
+from monovo_cli.geometry.plane import Plane, normal_from_pitch_roll
+from monovo_cli.io.config import InitConfig, check_frame_size, dump_init, load_init
 
 S = math.sqrt(0.5)
 BASE = {
@@ -81,22 +75,22 @@ def test_spec_example_loads(tmp_path):
     assert isinstance(cam, PinholeCamera)
     assert (cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy) == (688, 544, 600, 600, 343.5, 271.5)
     assert cam.distortion == (0.0,) * 5
-    assert cfg.ground.distance == 1.5
-    assert cfg.ground.region == (0, 272, 688, 544)
-    np.testing.assert_allclose(cfg.ground.normal_array(), [0, S, S], atol=1e-7)
-    assert np.linalg.norm(cfg.ground.normal_array()) == pytest.approx(1.0, abs=1e-12)
+    assert cfg.plane.distance == 1.5
+    assert cfg.region == (0, 272, 688, 544)
+    np.testing.assert_allclose(cfg.plane.normal, [0, S, S], atol=1e-7)
+    assert np.linalg.norm(cfg.plane.normal) == pytest.approx(1.0, abs=1e-12)
     assert cfg.path == tmp_path / "init.yaml"
 
 
 def test_defaults_region_whole_frame_and_no_distortion(tmp_path):
     d = cfg_with(ground__region=_DEL, camera__distortion=_DEL)
     cfg = load(tmp_path, d)
-    assert cfg.ground.region == (0, 0, 688, 544)
+    assert cfg.region == (0, 0, 688, 544)
     assert cfg.camera.distortion == (0.0,) * 5
     d["camera"]["distortion"] = None
     d["ground"]["region"] = None
     cfg = load(tmp_path, d)
-    assert cfg.ground.region == (0, 0, 688, 544)
+    assert cfg.region == (0, 0, 688, 544)
 
 
 def test_yaml11_exponent_strings_and_integral_floats_accepted(tmp_path):
@@ -282,7 +276,7 @@ def test_normal_errors(tmp_path, value, msg):
 def test_non_unit_normal_normalised_with_warning(tmp_path, caplog):
     with caplog.at_level(logging.WARNING, logger="monovo_cli.io.config"):
         cfg = load(tmp_path, cfg_with(ground__normal=[0, 3.0, 4.0]))
-    np.testing.assert_allclose(cfg.ground.normal, [0, 0.6, 0.8])
+    np.testing.assert_allclose(cfg.plane.normal, [0, 0.6, 0.8])
     assert any("normalised" in r.getMessage() and "length 5" in r.getMessage() for r in caplog.records)
 
 
@@ -344,7 +338,7 @@ def test_region_errors(tmp_path, region, msg):
 
 
 def test_region_integral_floats_ok(tmp_path):
-    assert load(tmp_path, cfg_with(ground__region=[0.0, 272.0, 688, 544])).ground.region == (0, 272, 688, 544)
+    assert load(tmp_path, cfg_with(ground__region=[0.0, 272.0, 688, 544])).region == (0, 272, 688, 544)
 
 
 # ----------------------------------------------------------------------------- visibility
@@ -359,7 +353,7 @@ def test_plane_not_visible_in_upper_image(tmp_path):
         load(tmp_path, d)
     d["ground"]["region"] = [0, 272, 688, 544]
     cfg = load(tmp_path, d)
-    assert cfg.ground.region == (0, 272, 688, 544)
+    assert cfg.region == (0, 272, 688, 544)
 
 
 def test_plane_too_oblique(tmp_path):
@@ -389,16 +383,16 @@ def test_height_pitch_equals_normal_distance(tmp_path, pitch):
     d = cfg_with(ground__normal=[0.0, math.cos(p), math.sin(p)], ground__distance=2.25,
                  ground__region=region)
     b = load(tmp_path, d)
-    np.testing.assert_allclose(a.ground.normal, b.ground.normal, atol=1e-15)
-    assert a.ground.distance == b.ground.distance == 2.25
-    assert a.ground.region == b.ground.region
-    np.testing.assert_allclose(a.ground.normal, [0.0, math.cos(p), math.sin(p)], atol=1e-15)
+    np.testing.assert_allclose(a.plane.normal, b.plane.normal, atol=1e-15)
+    assert a.plane.distance == b.plane.distance == 2.25
+    assert a.region == b.region
+    np.testing.assert_allclose(a.plane.normal, [0.0, math.cos(p), math.sin(p)], atol=1e-15)
 
 
 @pytest.mark.parametrize("pitch, roll", [(45.0, 10.0), (30.0, -20.0), (70.0, 45.0), (60.0, 0.0)])
 def test_roll_convention(tmp_path, pitch, roll):
     cfg = load(tmp_path, _hp(pitch_deg=pitch, roll_deg=roll, region=[0, 400, 688, 544]))
-    n = cfg.ground.normal_array()
+    n = cfg.plane.normal
     assert np.linalg.norm(n) == pytest.approx(1.0, abs=1e-12)
     p, r = math.radians(pitch), math.radians(roll)
     # Documented: n = Rz(r)^T (0, cos p, sin p) = (sin r cos p, cos r cos p, sin p).
@@ -422,15 +416,14 @@ def test_roll_convention(tmp_path, pitch, roll):
 
 def test_pitch_90_looks_straight_down(tmp_path):
     cfg = load(tmp_path, _hp(pitch_deg=90, roll_deg=30))
-    np.testing.assert_allclose(cfg.ground.normal, [0, 0, 1], atol=1e-15)
-    assert cfg.ground.region == (0, 0, 688, 544)
+    np.testing.assert_allclose(cfg.plane.normal, [0, 0, 1], atol=1e-15)
+    assert cfg.region == (0, 0, 688, 544)
 
 
 def test_from_height_pitch_helper():
-    g = GroundPlane.from_height_pitch(1.2, 30.0)
-    assert g.distance == 1.2 and g.region is None
+    g = Plane.from_height_pitch(1.2, 30.0)
+    assert g.distance == 1.2
     np.testing.assert_allclose(g.normal, [0, math.cos(math.radians(30)), 0.5], atol=1e-15)
-    assert g.region_or_full(640, 480) == (0, 0, 640, 480)
 
 
 # ----------------------------------------------------------------------------- dump_init
@@ -441,34 +434,33 @@ def test_dump_load_round_trip(tmp_path):
     n /= np.linalg.norm(n)
     cam = PinholeCamera(640, 480, 512.3456789, 510.0000001, 319.5, 239.25,
                         (-0.21, 0.0345, 1e-20, -3.5e-4, 0.0))
-    ground = GroundPlane(normal=tuple(float(c) for c in n), distance=1.2345678901234567,
-                         region=(0, 200, 640, 480))
+    plane = Plane(n, 1.2345678901234567)
     out = tmp_path / "sub_init.yaml"
-    dump_init(out, cam, ground)
+    dump_init(out, cam, plane, (0, 200, 640, 480))
     cfg = load_init(out)
     assert cfg.camera == cam
-    assert cfg.ground == ground
+    assert cfg.plane == plane and cfg.region == (0, 200, 640, 480)
     assert cfg.path == out
     assert [p.name for p in tmp_path.iterdir()] == ["sub_init.yaml"]  # no temp files left
-    # Written as plain SPEC-style YAML.
+    # Written as plain YAML in the documented format (docs/guide.md).
     raw = yaml.safe_load(out.read_text())
     assert set(raw) == {"camera", "ground"}
     assert raw["camera"]["distortion"][2] == 1e-20  # a YAML float, not a string
 
 
 def test_dump_without_region_loads_whole_frame(tmp_path):
-    g = GroundPlane.from_height_pitch(1.0, 90.0)
+    g = Plane.from_height_pitch(1.0, 90.0)
     cam = PinholeCamera(64, 48, 50.0, 50.0, 31.5, 23.5)
     dump_init(tmp_path / "init.yaml", cam, g)
     cfg = load_init(tmp_path / "init.yaml")
-    assert cfg.ground.region == (0, 0, 64, 48)
-    np.testing.assert_allclose(cfg.ground.normal, g.normal, atol=0)
+    assert cfg.region == (0, 0, 64, 48)
+    assert cfg.plane == g
 
 
 @pytest.mark.parametrize("cam, ground, msg", [
-    (PinholeCamera(64, 48, -50.0, 50.0, 31.5, 23.5), GroundPlane((0.0, 0.0, 1.0), 1.0), r"fx must be > 0"),
-    (PinholeCamera(64, 48, 50.0, 50.0, 31.5, 23.5), GroundPlane((0.0, 0.0, 1.0), float("nan")), "non-finite"),
-    (PinholeCamera(64, 48, 50.0, 50.0, 31.5, 23.5), GroundPlane((0.0, 0.0, -1.0), 1.0), "not in front"),
+    (PinholeCamera(64, 48, -50.0, 50.0, 31.5, 23.5), Plane((0.0, 0.0, 1.0), 1.0), r"fx must be > 0"),
+    (PinholeCamera(64, 48, 50.0, 50.0, 31.5, 23.5), Plane((0.0, 0.0, 1.0), float("nan")), "non-finite"),
+    (PinholeCamera(64, 48, 50.0, 50.0, 31.5, 23.5), Plane((0.0, 0.0, -1.0), 1.0), "not in front"),
 ])
 def test_dump_refuses_invalid(tmp_path, cam, ground, msg):
     out = tmp_path / "init.yaml"
@@ -570,14 +562,14 @@ def test_check_frame_size(tmp_path):
 
 
 def _assert_valid(cfg: InitConfig) -> None:
-    cam, g = cfg.camera, cfg.ground
+    cam, g = cfg.camera, cfg.plane
     assert isinstance(cam.width, int) and 0 < cam.width and 0 < cam.height
     assert cam.fx > 0 and cam.fy > 0 and math.isfinite(cam.cx) and math.isfinite(cam.cy)
     assert len(cam.distortion) == 5 and all(math.isfinite(c) for c in cam.distortion)
-    n = g.normal_array()
+    n = g.normal
     assert abs(np.linalg.norm(n) - 1.0) < 1e-9 and n[2] > 0
     assert g.distance > 0 and math.isfinite(g.distance)
-    x0, y0, x1, y1 = g.region
+    x0, y0, x1, y1 = cfg.region
     assert 0 <= x0 < x1 <= cam.width and 0 <= y0 < y1 <= cam.height
 
 

@@ -13,7 +13,6 @@ from monovo_cli.core.estimate import KeyLevel, estimate_motion
 from monovo_cli.core.ground import rectangle_corners, select_points
 from monovo_cli.core.odometry import TrackOptions, track
 from monovo_cli.geometry.lie import se3_inv
-from monovo_cli.geometry.plane import Plane
 from monovo_cli.image.pyramid import build_pyramid
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_motion_csv, read_tum
@@ -32,9 +31,9 @@ def _track(seq, images=None, options=None, priors=None):
     cfg = load_init(seq / "init.yaml")
     fr = FrameSequence(seq / "frames")
     imgs = images if images is not None else [f.image for f in fr]
-    plane = Plane(np.asarray(cfg.ground.normal_array()), cfg.ground.distance)
+    plane = cfg.plane
     return list(track(((k, float(k), im) for k, im in enumerate(imgs)), cfg.camera, plane,
-                      cfg.ground.region, options or TrackOptions(), priors=priors))
+                      cfg.region, options or TrackOptions(), priors=priors))
 
 
 def _pos_err(res, gt):
@@ -67,8 +66,8 @@ def test_brightness_model_recovers_gain_and_bias(drive):
     cfg = load_init(drive / "init.yaml")
     fr = FrameSequence(drive / "frames")
     i0, i1 = fr.read(0).image, fr.read(1).image
-    plane = Plane(np.asarray(cfg.ground.normal_array()), cfg.ground.distance)
-    corners = rectangle_corners(cfg.camera, plane, cfg.ground.region)
+    plane = cfg.plane
+    corners = rectangle_corners(cfg.camera, plane, cfg.region)
     pyr0, pyr1 = build_pyramid(i0, 3), build_pyramid(1.2 * i1 - 10.0, 3)
     levels = [KeyLevel.from_points(select_points(pyr0[lv], cfg.camera.scaled(lv), plane, corners,
                                                  level=lv, threshold=5.0, max_points=8000))
@@ -132,8 +131,8 @@ def test_cli_mask_prior_covariance(drive, tmp_path):
 def test_masked_pixels_are_never_observation_points(drive):
     cfg = load_init(drive / "init.yaml")
     img = FrameSequence(drive / "frames").read(0).image
-    plane = Plane(np.asarray(cfg.ground.normal_array()), cfg.ground.distance)
-    corners = rectangle_corners(cfg.camera, plane, cfg.ground.region)
+    plane = cfg.plane
+    corners = rectangle_corners(cfg.camera, plane, cfg.region)
     usable = np.ones_like(img, bool)
     usable[100:] = False
     pts = select_points(img, cfg.camera, plane, corners, level=0, threshold=3.0,

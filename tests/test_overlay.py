@@ -46,8 +46,8 @@ def tracked(tmp_path_factory):
 
 def _setup(seq: Path):
     cfg = load_init(seq / "init.yaml")
-    plane = Plane(cfg.ground.normal_array(), cfg.ground.distance)
-    return cfg, plane, cfg.ground.region_or_full(cfg.camera.width, cfg.camera.height)
+    plane = cfg.plane
+    return cfg, plane, cfg.region
 
 
 def test_triangle_stays_glued_within_a_pixel(tracked):

@@ -13,7 +13,6 @@ import pytest
 from monovo_cli.core.ground import barycentric
 from monovo_cli.core.odometry import TrackOptions, build_keyframe, track
 from monovo_cli.geometry.lie import se3_inv, so3_log
-from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_motion_csv, read_tum
 from monovo_cli.io.frames import FrameSequence
@@ -23,9 +22,9 @@ from monovo_cli.synth.write import synthesize
 def _run(seq: Path, options: TrackOptions | None = None):
     cfg = load_init(seq / "init.yaml")
     frames = FrameSequence(seq / "frames")
-    plane = Plane(np.asarray(cfg.ground.normal_array()), cfg.ground.distance)
+    plane = cfg.plane
     gen = ((f.index, f.timestamp, f.image) for f in frames)
-    return list(track(gen, cfg.camera, plane, cfg.ground.region, options or TrackOptions()))
+    return list(track(gen, cfg.camera, plane, cfg.region, options or TrackOptions()))
 
 
 @pytest.fixture(scope="module")
@@ -104,8 +103,8 @@ def test_short_drive_tracks_against_ground_truth(drive):
 def test_keyframe_points_lie_on_the_plane_with_valid_barycentrics(drive):
     cfg = load_init(drive / "init.yaml")
     img = FrameSequence(drive / "frames").read(0).image
-    plane = Plane(np.asarray(cfg.ground.normal_array()), cfg.ground.distance)
-    key = build_keyframe(0, img, cfg.camera, plane, cfg.ground.region, np.eye(4),
+    plane = cfg.plane
+    key = build_keyframe(0, img, cfg.camera, plane, cfg.region, np.eye(4),
                          TrackOptions(max_points=3000))
     pts = key.levels[0].points
     assert 1000 < len(pts) <= 3000

@@ -1,26 +1,15 @@
 """The initial-pose file (``init.yaml``, SPEC "Input: the initial-pose file").
 
 This module is the only place where raw YAML exists: :func:`load_init` turns a file
-into a validated :class:`InitConfig` (a :class:`~monovo_cli.geometry.PinholeCamera`
-plus a :class:`GroundPlane`), :func:`dump_init` writes one back. Every problem raises
+into a validated :class:`InitConfig` (a :class:`~monovo_cli.geometry.camera.PinholeCamera`,
+the ground :class:`~monovo_cli.geometry.plane.Plane` and the ground region),
+:func:`dump_init` writes one back. Every problem raises
 :class:`~monovo_cli.errors.ConfigError` with one line: the file, what is wrong and what
 would fix it, e.g. ``init.yaml: camera.fx must be > 0, got -3``.
 
-Ground from height and pitch
-----------------------------
 Instead of ``normal`` + ``distance`` the ground may be given as ``height`` (m),
-``pitch_deg`` p (the camera tilted down from horizontal; 90 = looking straight down)
-and optional ``roll_deg`` r. ``distance = height`` and::
-
-    normal = (sin r * cos p,  cos r * cos p,  sin p)
-
-i.e. ``normal = Rz(r)^T (0, cos p, sin p)``: starting from the pitched camera (whose
-ground normal is ``(0, cos p, sin p)`` as in SPEC), the camera is turned about its own
-optical axis z by r with ``Rz`` the usual right-handed rotation. In the image (x right,
-y down) a positive r turns the camera's x axis towards its y axis, i.e. the camera turns
-*clockwise as seen from behind it*: its right side dips, so the scene appears turned
-counter-clockwise and the horizon rises to the right (horizon slope dv/du = -tan r for
-fx = fy). Roll 0 gives SPEC's ``normal = (0, cos p, sin p)``.
+``pitch_deg`` and optional ``roll_deg`` (the convention is in
+:mod:`monovo_cli.geometry.plane`; roll 0 gives ``normal = (0, cos p, sin p)``).
 """
 
 from __future__ import annotations
@@ -38,6 +27,7 @@ import yaml
 
 from monovo_cli.errors import ConfigError
 from monovo_cli.geometry.camera import PinholeCamera
+from monovo_cli.geometry.plane import Plane, normal_from_pitch_roll
 from monovo_cli.io.atomic import atomic_write_text
 
 log = logging.getLogger(__name__)
@@ -57,52 +47,22 @@ UNIT_TOLERANCE = 1e-6           # |normal| further than this from 1 is normalise
 _NUMBER_RE = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 
 
-@dataclass(frozen=True)
-class GroundPlane:
-    """The planar ground at frame 0, in camera-0 coordinates: ``{X : n . X = d}``.
-
-    ``normal`` is the unit normal pointing from the camera to the ground, ``distance``
-    the camera's distance to the plane (m, > 0). ``region`` is the image rectangle
-    ``(x0, y0, x1, y1)`` (px, x1 and y1 exclusive) the ground model covers at frame 0;
-    ``None`` means the whole frame (:func:`load_init` always fills it in).
-    """
-
-    normal: tuple[float, float, float]
-    distance: float
-    region: tuple[int, int, int, int] | None = None
-
-    def normal_array(self) -> np.ndarray:
-        """The unit normal as a float array (3,)."""
-        return np.array(self.normal, dtype=float)
-
-    def region_or_full(self, width: int, height: int) -> tuple[int, int, int, int]:
-        """``region``, or the whole ``width`` x ``height`` frame when it is ``None``."""
-        return self.region if self.region is not None else (0, 0, int(width), int(height))
-
-    @classmethod
-    def from_height_pitch(cls, height: float, pitch_deg: float, roll_deg: float = 0.0,
-                          region: tuple[int, int, int, int] | None = None) -> GroundPlane:
-        """The plane of a camera ``height`` m above the ground, pitched down by ``pitch_deg``
-        and rolled by ``roll_deg`` (convention in the module docstring)."""
-        n = normal_from_pitch_roll(pitch_deg, roll_deg)
-        return cls(normal=(float(n[0]), float(n[1]), float(n[2])), distance=float(height),
-                   region=region)
+Region = tuple[int, int, int, int]
 
 
 @dataclass(frozen=True)
 class InitConfig:
-    """A validated ``init.yaml``: the camera, the ground plane and the file it came from."""
+    """A validated ``init.yaml``: the camera, the ground at frame 0 and the file it came from.
+
+    ``plane`` is the ground in camera-0 coordinates; ``region`` the image rectangle
+    ``(x0, y0, x1, y1)`` (px, x1 and y1 exclusive) the ground model covers at frame 0 (the
+    whole frame when init.yaml gives none).
+    """
 
     camera: PinholeCamera
-    ground: GroundPlane
+    plane: Plane
+    region: Region
     path: Path
-
-
-def normal_from_pitch_roll(pitch_deg: float, roll_deg: float = 0.0) -> np.ndarray:
-    """Unit ground normal (3,) of a camera pitched down by ``pitch_deg`` and rolled by
-    ``roll_deg`` about its optical axis: ``(sin r cos p, cos r cos p, sin p)``."""
-    p, r = math.radians(pitch_deg), math.radians(roll_deg)
-    return np.array([math.sin(r) * math.cos(p), math.cos(r) * math.cos(p), math.sin(p)])
 
 
 # ----------------------------------------------------------------------------- helpers
@@ -344,7 +304,7 @@ def _unit_normal(name: str, value: Any) -> tuple[float, float, float]:
     return (float(u[0]), float(u[1]), float(u[2]))
 
 
-def _region(name: str, value: Any, width: int, height: int) -> tuple[int, int, int, int]:
+def _region(name: str, value: Any, width: int, height: int) -> Region:
     if value is None:
         return (0, 0, width, height)
     if not isinstance(value, (list, tuple)) or len(value) != 4:
@@ -364,7 +324,7 @@ def _region(name: str, value: Any, width: int, height: int) -> tuple[int, int, i
     return (x0, y0, x1, y1)
 
 
-def _ground_section(name: str, value: Any, camera: PinholeCamera) -> GroundPlane:
+def _ground_section(name: str, value: Any, camera: PinholeCamera) -> tuple[Plane, Region]:
     g = _mapping(name, "ground", value, "normal + distance (or height + pitch_deg) [+ region]")
     _check_keys(name, g, GROUND_KEYS, "ground.")
     explicit = [k for k in ("normal", "distance") if k in g]
@@ -394,12 +354,11 @@ def _ground_section(name: str, value: Any, camera: PinholeCamera) -> GroundPlane
             roll = _number(name, "ground.roll_deg", g["roll_deg"])
             if not -90.0 < roll < 90.0:
                 raise _fail(name, f"ground.roll_deg must be in (-90, 90), got {_show(g['roll_deg'])}")
-        n = normal_from_pitch_roll(pitch, roll)
-        normal = (float(n[0]), float(n[1]), float(n[2]))
+        normal = normal_from_pitch_roll(pitch, roll)
     region = _region(name, g.get("region"), camera.width, camera.height)
-    plane = GroundPlane(normal=normal, distance=distance, region=region)
-    _check_visible(name, camera, plane)
-    return plane
+    plane = Plane(normal, distance)
+    _check_visible(name, camera, plane, region)
+    return plane, region
 
 
 def _rays(camera: PinholeCamera, uv: np.ndarray) -> np.ndarray:
@@ -418,14 +377,14 @@ def _rays(camera: PinholeCamera, uv: np.ndarray) -> np.ndarray:
         return np.concatenate([pts, np.ones((len(pts), 1))], axis=1)
 
 
-def _check_visible(name: str, camera: PinholeCamera, plane: GroundPlane) -> None:
+def _check_visible(name: str, camera: PinholeCamera, plane: Plane, region: Region) -> None:
     """The plane must lie in front of the camera and be hit by every ray of the region."""
-    n = plane.normal_array()
+    n = plane.normal
     if n[2] <= MIN_NORMAL_Z:
         raise _fail(name, f"the ground plane is not in front of the camera (normal z = {n[2]:.3g}, "
                           f"must be > {MIN_NORMAL_Z:g}: the normal points from the camera to the "
                           "ground); check normal/pitch_deg")
-    x0, y0, x1, y1 = plane.region_or_full(camera.width, camera.height)
+    x0, y0, x1, y1 = region
     # Sample the region's border (pixel centres): corners suffice without distortion,
     # where n . ray is affine in the pixel; the edge samples cover distorted cameras.
     us = np.unique(np.linspace(x0, x1 - 1, 9).round())
@@ -458,7 +417,7 @@ def _check_visible(name: str, camera: PinholeCamera, plane: GroundPlane) -> None
                           "ground.region's top edge down")
 
 
-def _parse(data: Any, name: str, base_dir: Path) -> tuple[PinholeCamera, GroundPlane]:
+def _parse(data: Any, name: str, base_dir: Path) -> tuple[PinholeCamera, Plane, Region]:
     if data is None:
         raise _fail(name, "the file is empty; it needs 'camera:' and 'ground:' sections")
     if not isinstance(data, dict):
@@ -474,8 +433,8 @@ def _parse(data: Any, name: str, base_dir: Path) -> tuple[PinholeCamera, GroundP
         camera = _camera_section(name, data["camera"])
     else:
         camera = _camera_info(name, base_dir, data["camera_file"])
-    ground = _ground_section(name, data["ground"], camera)
-    return camera, ground
+    plane, region = _ground_section(name, data["ground"], camera)
+    return camera, plane, region
 
 
 # ----------------------------------------------------------------------------- public
@@ -488,8 +447,8 @@ def load_init(path: Path) -> InitConfig:
     if path.is_dir():
         raise _fail(name, "is a directory; expected the init.yaml file")
     data = _read_yaml(path, name, "the init file")
-    camera, ground = _parse(data, name, path.parent)
-    return InitConfig(camera=camera, ground=ground, path=path)
+    camera, plane, region = _parse(data, name, path.parent)
+    return InitConfig(camera=camera, plane=plane, region=region, path=path)
 
 
 def check_frame_size(cfg: InitConfig, width: int, height: int, frame_path: Path) -> None:
@@ -520,13 +479,14 @@ def _flow(values, fmt) -> str:
     return "[" + ", ".join(fmt(v) for v in values) + "]"
 
 
-def dump_init(path: Path, camera: PinholeCamera, ground: GroundPlane) -> None:
-    """Write ``camera`` and ``ground`` as an init.yaml (SPEC format, normal + distance form),
-    atomically. Raises ConfigError, writing nothing, if they would not load back."""
+def dump_init(path: Path, camera: PinholeCamera, plane: Plane, region: Region | None = None) -> None:
+    """Write ``camera``, the ground ``plane`` and ``region`` (None: the whole frame) as an
+    init.yaml (docs/guide.md "File formats", the normal + distance form), atomically.
+    Raises ConfigError, writing nothing, if they would not load back."""
     path = Path(path)
     name = str(path)
     numbers = [camera.fx, camera.fy, camera.cx, camera.cy, *camera.distortion,
-               *ground.normal, ground.distance]
+               *plane.normal, plane.distance]
     try:
         finite = all(math.isfinite(float(v)) for v in numbers)
     except (TypeError, ValueError, OverflowError):
@@ -544,11 +504,11 @@ def dump_init(path: Path, camera: PinholeCamera, ground: GroundPlane) -> None:
         f"  cy: {_yaml_float(camera.cy)}",
         f"  distortion: {_flow(camera.distortion, _yaml_float)}",
         "ground:",
-        f"  normal: {_flow(ground.normal, _yaml_float)}",
-        f"  distance: {_yaml_float(ground.distance)}",
+        f"  normal: {_flow(plane.normal, _yaml_float)}",
+        f"  distance: {_yaml_float(plane.distance)}",
     ]
-    if ground.region is not None:
-        lines.append(f"  region: {_flow(ground.region, lambda v: str(int(v)))}")
+    if region is not None:
+        lines.append(f"  region: {_flow(region, lambda v: str(int(v)))}")
     text = "\n".join(lines) + "\n"
     # Validate exactly what will be read back.
     _parse(yaml.load(text, Loader=_UniqueKeyLoader), name, path.parent)

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -12,8 +13,9 @@ import numpy as np
 
 from monovo_cli.errors import InputError
 from monovo_cli.io.frames import FrameSequence
-from monovo_cli.pipeline.batch import log
-from monovo_cli.pipeline.track import _plane, open_sequence
+from monovo_cli.pipeline.track import open_sequence
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -69,8 +71,7 @@ def overlay_sequence(seq: Path, params: Path | None, trajectory: Path, out: str 
     poses = _trajectory_by_frame(trajectory, frames)
     motion = trajectory.parent / "motion.csv"
     stats = read_motion_stats(motion) if motion.is_file() else {}
-    plane = _plane(cfg)
-    region = cfg.ground.region_or_full(cfg.camera.width, cfg.camera.height)
+    plane, region = cfg.plane, cfg.region
     tri = triangle_on_ground(cfg.camera, plane, triangle_px, region)
     renderer = OverlayRenderer(cfg.camera, plane, tri, region=region, points=points)
     last = max(poses)

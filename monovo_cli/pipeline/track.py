@@ -94,9 +94,8 @@ def init_model(seq: Path, params: Path | None, out: Path, options: TrackOptions)
     frames, cfg = open_sequence(seq, params)
     first = frames.read(0)
     with _naming(first.path):
-        key = build_keyframe(0, first.image, cfg.camera, _plane(cfg), cfg.ground.region, np.eye(4),
-                             options)
-    save_model(out, key, cfg.camera, cfg.ground.region)
+        key = build_keyframe(0, first.image, cfg.camera, cfg.plane, cfg.region, np.eye(4), options)
+    save_model(out, key, cfg.camera, cfg.region)
     return key
 
 
@@ -107,10 +106,6 @@ def _naming(path: Path) -> Iterator[None]:
         yield
     except TrackingError as exc:
         raise TrackingError(f"{path}: {exc}") from None
-
-
-def _plane(cfg: InitConfig) -> Plane:
-    return Plane(np.asarray(cfg.ground.normal_array(), dtype=float), float(cfg.ground.distance))
 
 
 @contextlib.contextmanager
@@ -204,7 +199,7 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     try:
         writer = MotionWriter(stream, with_std=True)
         cov_writer = CovarianceWriter(_open_output(Path(covariance))) if covariance else None
-        odo = Odometry(cfg.camera, _plane(cfg), cfg.ground.region, options,
+        odo = Odometry(cfg.camera, cfg.plane, cfg.region, options,
                        first_keyframe=first_key, mask=usable)
         prev = None
         dist = 0.0
@@ -251,7 +246,7 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                 cov_writer.close()
     seconds = time.perf_counter() - t0
     if out_dir is not None:
-        _write_trajectory_plot(Path(out_dir), _plane(cfg), results, gt_poses)
+        _write_trajectory_plot(Path(out_dir), cfg.plane, results, gt_poses)
     return TrackSummary(len(results), float(np.mean(msds)) if msds else 0.0, seconds, lost,
                         reanchored, dist, Path(out_dir) if out_dir is not None else None)
 
