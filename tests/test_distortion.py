@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from monovo_cli.core.odometry import TrackOptions, track
+from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import se3_inv, so3_log
 from monovo_cli.geometry.plane import Plane
@@ -55,7 +56,7 @@ def test_distorted_drive_is_tracked_when_the_lens_is_modelled(distorted_drive):
     cam, plane, frames, truth = distorted_drive
     dist = sum(np.linalg.norm(truth[k][:3, 3] - truth[k - 1][:3, 3]) for k in range(1, len(truth)))
     err, rot, status = _final_error(cam, plane, frames, truth)
-    assert "lost" not in status
+    assert FrameStatus.LOST not in status
     assert err < 0.01 * dist, (err, dist)
     assert rot < 0.2
     # ignoring the distortion is visibly worse: the handling is what makes it work

@@ -11,7 +11,8 @@ from click.testing import CliRunner
 from monovo_cli.cli import main
 from monovo_cli.core.estimate import KeyLevel, estimate_motion
 from monovo_cli.core.ground import rectangle_corners, select_points
-from monovo_cli.core.odometry import TrackOptions, track
+from monovo_cli.core.odometry import Odometry, OdometryState, TrackOptions, track
+from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.image.pyramid import build_pyramid
 from monovo_cli.io.config import load_init
@@ -52,14 +53,32 @@ def test_faults_are_flagged_and_tracking_resumes(drive):
     _, gt = read_tum(drive / "groundtruth.tum")
     status = [r.status for r in res]
     for k in (12, 20, 28, 33):
-        assert status[k] == "lost", (k, status[k], res[k].reason)
-    assert status.count("lost") == 4
+        assert status[k] == FrameStatus.LOST, (k, status[k], res[k].reason)
+    assert status.count(FrameStatus.LOST) == 4
     err = _pos_err(res, gt)
     # back on track at the very next frame, every time
     for k in (13, 21, 29, 34):
         assert err[k] < 0.01, (k, err[k])
     for r in res:
         assert np.all(np.isfinite(r.world_from_cam)) and np.isfinite(r.msd)
+
+
+def test_a_lost_frame_sends_the_tracker_recovering_until_it_re_anchors(drive):
+    """The state machine: starting -> tracking; a lost frame -> recovering (its next guess
+    from the rotation search); the next good frame anchors a new keyframe -> tracking."""
+    cfg = load_init(drive / "init.yaml")
+    imgs = [f.image for f in FrameSequence(drive / "frames")][:6]
+    imgs[3] = np.zeros_like(imgs[3])
+    odo = Odometry(cfg.camera, cfg.plane, cfg.region)
+    assert odo.state is OdometryState.STARTING
+    assert odo.start(0, 0.0, imgs[0]).status is FrameStatus.OK
+    assert odo.state is OdometryState.STARTING
+    seen = [(odo.step(k, float(k), imgs[k]).status, odo.state) for k in range(1, 6)]
+    assert seen == [(FrameStatus.OK, OdometryState.TRACKING)] * 2 + [
+        (FrameStatus.LOST, OdometryState.RECOVERING),
+        (FrameStatus.REANCHORED, OdometryState.TRACKING),
+        (FrameStatus.OK, OdometryState.TRACKING)]
+    assert odo.keyframe.index == 4
 
 
 def test_brightness_model_recovers_gain_and_bias(drive):
@@ -88,12 +107,12 @@ def test_prior_replaces_constant_velocity(drive):
     res = _track(drive, priors=priors)
     _, truth = read_tum(drive / "groundtruth.tum")
     assert _pos_err(res, truth).max() < 0.005
-    assert all(r.status != "lost" for r in res)
+    assert all(r.status != FrameStatus.LOST for r in res)
 
 
 def test_max_step_marks_large_steps_lost(drive):
     res = _track(drive, options=TrackOptions(max_step_m=0.01))
-    assert all(r.status == "lost" for r in res[1:])
+    assert all(r.status == FrameStatus.LOST for r in res[1:])
     assert all(np.all(np.isfinite(r.world_from_cam)) for r in res)
 
 

@@ -12,6 +12,7 @@ import pytest
 
 from monovo_cli.core.ground import barycentric
 from monovo_cli.core.odometry import TrackOptions, build_keyframe, track
+from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.lie import se3_inv, so3_log
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_motion_csv, read_tum
@@ -39,7 +40,7 @@ def test_pairs_recovered_within_noise_tolerance(pairs):
         res = _run(pair)
         _, gt, _ = read_motion_csv(pair / "groundtruth_motion.csv")
         est = res[1].prev_from_cur
-        assert res[1].status == "ok"
+        assert res[1].status == FrameStatus.OK
         dt = est[:3, 3] - gt[0][:3, 3]
         dr = np.degrees(so3_log(est[:3, :3]) - so3_log(gt[0][:3, :3]))
         assert np.abs(dt).max() < 0.015, (pair.name, dt)
@@ -71,7 +72,7 @@ def test_noisy_frame_after_a_clean_keyframe_is_not_lost(tmp_path):
         res = _run(pair)
         _, gt, _ = read_motion_csv(pair / "groundtruth_motion.csv")
         err = se3_inv(gt[0]) @ res[1].prev_from_cur
-        assert res[1].status == "ok", res[1].reason
+        assert res[1].status == FrameStatus.OK, res[1].reason
         assert np.linalg.norm(err[:3, 3]) < 0.03
         assert np.degrees(np.linalg.norm(so3_log(err[:3, :3]))) < 0.015
 
@@ -86,7 +87,7 @@ def drive(tmp_path_factory):
 def test_short_drive_tracks_against_ground_truth(drive):
     res = _run(drive)
     _, gt = read_tum(drive / "groundtruth.tum")
-    assert [r.status for r in res].count("lost") == 0
+    assert [r.status for r in res].count(FrameStatus.LOST) == 0
     est = np.array([r.world_from_cam for r in res])
     dist = np.linalg.norm(np.diff(gt[:, :3, 3], axis=0), axis=1).sum()
     err = np.linalg.norm(est[-1][:3, 3] - gt[-1][:3, 3])
@@ -132,7 +133,7 @@ def test_standing_start_at_the_corner_of_the_rotation_grid():
     res = _run(pair)
     _, gt, _ = read_motion_csv(pair / "groundtruth_motion.csv")
     assert np.degrees(np.abs(so3_log(gt[0][:3, :3]))).min() > 0.4  # a real 3-axis rotation
-    assert res[1].status == "ok", res[1].reason
+    assert res[1].status == FrameStatus.OK, res[1].reason
     err = se3_inv(gt[0]) @ res[1].prev_from_cur
     assert np.linalg.norm(err[:3, 3]) < 0.02
     assert np.degrees(np.linalg.norm(so3_log(err[:3, :3]))) < 0.01

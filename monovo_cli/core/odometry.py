@@ -17,6 +17,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
+from enum import Enum
 
 import cv2
 import numpy as np
@@ -31,6 +32,7 @@ from monovo_cli.core.estimate import (
 )
 from monovo_cli.core.ground import default_threshold, rectangle_corners, require_points, select_points
 from monovo_cli.core.plane_fit import PlanePrior, refine_plane_and_motion
+from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import orthonormalize, se3_inv, skew, so3_log
@@ -107,7 +109,7 @@ class FrameResult:
     msd: float
     iterations: int
     points: int
-    status: str
+    status: FrameStatus
     std: np.ndarray
     covariance: np.ndarray
     keyframe: int = 0
@@ -198,6 +200,16 @@ def output_covariance(cov_xi: np.ndarray, pose: np.ndarray) -> np.ndarray:
     return A @ cov_xi @ A.T
 
 
+class OdometryState(Enum):
+    """Where the tracker stands between frames: it decides the next frame's first guess."""
+
+    STARTING = "starting"      # no frame estimated yet: standing still is the prediction, and
+    #                            the rotation search gives the first guess
+    TRACKING = "tracking"      # the last accepted frame's motion (constant velocity) is the guess
+    RECOVERING = "recovering"  # a frame was lost: the rotation search gives the guess, and the
+    #                            next accepted frame anchors a new keyframe
+
+
 class Odometry:
     """Tracks a sequence frame by frame against keyframes (the paper's moved ground model)."""
 
@@ -215,16 +227,20 @@ class Odometry:
         self._world_from_prev = np.eye(4)
         self._cur_from_key_prev = np.eye(4)
         self._cov_prev = np.zeros((6, 6))      # of key_from_prev's left twist
-        self._velocity: np.ndarray | None = None  # cur_from_prev of the last good frame
+        self._velocity = np.eye(4)  # cur_from_prev of the last accepted frame (none: standing)
+        self._state = OdometryState.STARTING
         self._gain, self._bias = 1.0, 0.0
         self._recent_msd: deque[float] = deque(maxlen=15)
         self._sigma = 1.0  # noise sigma of the current frame's differences (see _residual_sigma)
-        self._pending_reanchor = False
         self._prev_image: np.ndarray | None = None
 
     @property
     def keyframe(self) -> Keyframe | None:
         return self._key
+
+    @property
+    def state(self) -> OdometryState:
+        return self._state
 
     def start(self, index: int, timestamp: float, image: np.ndarray) -> FrameResult:
         """Frame 0: the identity pose; builds the first ground model unless one was given."""
@@ -233,13 +249,13 @@ class Odometry:
                                        np.eye(4), self.options, mask=self.mask)
         self._prev_image = image
         n = len(self._key.levels[0].points)
-        return FrameResult(index, timestamp, np.eye(4), np.eye(4), 0.0, 0, n, "ok",
+        return FrameResult(index, timestamp, np.eye(4), np.eye(4), 0.0, 0, n, FrameStatus.OK,
                            np.zeros(6), np.zeros((6, 6)), keyframe=self._key.index)
 
     # -- one frame --------------------------------------------------------------------
     def step(self, index: int, timestamp: float, image: np.ndarray,
              prior_motion: np.ndarray | None = None) -> FrameResult:
-        """Estimate frame ``index``: status ``ok``, ``reanchored`` or ``lost``.
+        """Estimate frame ``index``: status OK, REANCHORED or LOST.
 
         ``prior_motion`` (4x4, T_{k-1}_k, e.g. from wheel odometry) replaces the constant
         velocity as the initial guess.
@@ -258,7 +274,7 @@ class Odometry:
         first_level = self.options.predicted_top_level
         if prior_motion is not None:
             guess = se3_inv(prior_motion) @ self._cur_from_key_prev
-        elif self._velocity is not None and not self._pending_reanchor:
+        elif self._state is OdometryState.TRACKING:
             guess = self._velocity @ self._cur_from_key_prev
         else:
             guess = self._search(key, pyr, self._cur_from_key_prev)
@@ -289,8 +305,9 @@ class Odometry:
         key = self._key
         cur_from_key = orthonormalize(est.cur_from_key)
         gain, bias = est.gain, est.bias
-        status = "ok"
-        reanchor = self._pending_reanchor or self._needs_reanchor(est, key, cur_from_key)
+        status = FrameStatus.OK
+        recovering = self._state is OdometryState.RECOVERING
+        reanchor = recovering or self._needs_reanchor(est, key, cur_from_key)
         plane_cur = key.plane.in_frame(cur_from_key)
         if reanchor and self.options.refine_plane and key.index != index:
             # The joint refinement gives the next keyframe its plane (in this camera); the
@@ -311,24 +328,26 @@ class Odometry:
         self._gain, self._bias = gain, bias
         self._recent_msd.append(est.msd)
         if reanchor and self._reanchor(index, image, pyr, world_from_cur, plane_cur):
-            status = "reanchored"
+            status = FrameStatus.REANCHORED
+        elif not recovering:  # (a recovering tracker whose new keyframe failed stays so)
+            self._state = OdometryState.TRACKING
         return FrameResult(index, timestamp, world_from_cur, prev_from_cur, est.msd,
                            est.iterations, est.points, status, std, cov, self._key.index,
                            est.gain, est.bias)
 
     def _lost(self, index: int, timestamp: float, reason: str,
               est: Estimate | None = None) -> FrameResult:
-        velocity = self._velocity if self._velocity is not None else np.eye(4)
-        cur_from_key = orthonormalize(velocity @ self._cur_from_key_prev)
+        cur_from_key = orthonormalize(self._velocity @ self._cur_from_key_prev)
         world_from_cur = orthonormalize(self._key.world_from_key @ se3_inv(cur_from_key))
         prev_from_cur = orthonormalize(se3_inv(self._world_from_prev) @ world_from_cur)
         self._world_from_prev = world_from_cur
         self._cur_from_key_prev = cur_from_key
-        self._pending_reanchor = True
+        self._state = OdometryState.RECOVERING
         msd = est.msd if est is not None and np.isfinite(est.msd) else 0.0
         its = est.iterations if est is not None else 0
         pts = est.points if est is not None else 0
-        return FrameResult(index, timestamp, world_from_cur, prev_from_cur, msd, its, pts, "lost",
+        return FrameResult(index, timestamp, world_from_cur, prev_from_cur, msd, its, pts,
+                           FrameStatus.LOST,
                            np.full(6, np.nan), np.full((6, 6), np.nan), self._key.index,
                            self._gain, self._bias, reason)
 
@@ -419,7 +438,7 @@ class Odometry:
         self._cur_from_key_prev = np.eye(4)
         self._cov_prev = np.zeros((6, 6))
         self._gain, self._bias = 1.0, 0.0
-        self._pending_reanchor = False
+        self._state = OdometryState.TRACKING
         return True
 
 

@@ -17,6 +17,7 @@ from typing import IO
 
 import numpy as np
 
+from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import InputError
 from monovo_cli.geometry.lie import make_pose, matrix_from_quat, quat_from_matrix, so3_exp, so3_log
 
@@ -45,7 +46,7 @@ class MotionRow:
     msd: float
     iterations: int
     points: int
-    status: str
+    status: FrameStatus | str
     std: np.ndarray | None = None  # (6,) std of (tx, ty, tz, rx, ry, rz), m and rad
 
     def fields(self, with_std: bool) -> list[str]:
@@ -213,7 +214,7 @@ def read_motion_csv(path: Path) -> tuple[np.ndarray, np.ndarray, list[str]]:
             raise InputError(f"{path}: line {i}: rotation vector ({', '.join(r[4:7])}) is not "
                              "axis times angle in degrees (components beyond 1e6)")
         poses.append(make_pose(so3_exp(np.radians(v[4:7])), np.array(v[1:4])))
-        statuses.append(r[10].strip() if len(r) > 10 else "ok")
+        statuses.append(r[10].strip() if len(r) > 10 else FrameStatus.OK)
     return np.array(frames, dtype=int), np.array(poses).reshape(-1, 4, 4), statuses
 
 

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from monovo_cli.core.odometry import FrameResult, Keyframe, Odometry, TrackOptions, build_keyframe
+from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import InputError, OutputError, TrackingError
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.atomic import atomic_write_text
@@ -229,8 +230,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                     if cov_writer is not None:
                         cov_writer.write(res.index, res.covariance)
                     msds.append(res.msd)
-                    lost += res.status == "lost"
-                    reanchored += res.status == "reanchored"
+                    lost += res.status == FrameStatus.LOST
+                    reanchored += res.status == FrameStatus.REANCHORED
                     dist += float(np.linalg.norm(res.world_from_cam[:3, 3] - prev[:3, 3]))
                 prev = res.world_from_cam
                 if checkpoint_every and len(results) % checkpoint_every == 0:
@@ -300,7 +301,7 @@ def _write_trajectory_plot(out_dir: Path, plane: Plane, results: list,
         return
     idx, _, poses = zip(*results)
     stats = read_motion_stats(out_dir / "motion.csv")
-    statuses = [stats.get(k, ("ok", 0.0))[0] for k in idx]
+    statuses = [stats.get(k, (FrameStatus.OK, 0.0))[0] for k in idx]
     gt = None
     if groundtruth is not None:
         gt = se3_inv(groundtruth[0]) @ groundtruth

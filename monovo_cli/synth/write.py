@@ -46,7 +46,7 @@ from monovo_cli.errors import InputError, OutputError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import make_pose, se3_inv
 from monovo_cli.io.atomic import atomic_write_text
-from monovo_cli.io.formats import MotionRow, fmt, motion_csv_text, tum_text
+from monovo_cli.io.formats import FrameStatus, MotionRow, fmt, motion_csv_text, tum_text
 from monovo_cli.synth.motion import (
     DRIVE_MAST_HEIGHT,
     DRIVE_PITCH_DEG,
@@ -119,7 +119,7 @@ def _write_sequence(seq_dir: Path, cam: PinholeCamera, poses: list[np.ndarray],
     inv0 = se3_inv(poses[0])
     traj = [np.eye(4)] + [inv0 @ g for g in poses[1:]]
     rows = [MotionRow(frame=k, prev_from_cur=se3_inv(poses[k - 1]) @ poses[k], msd=0.0,
-                      iterations=0, points=0, status="ok") for k in range(1, len(poses))]
+                      iterations=0, points=0, status=FrameStatus.OK) for k in range(1, len(poses))]
     atomic_write_text(seq_dir / "init.yaml", _init_yaml(cam, poses[0], region))
     atomic_write_text(seq_dir / "groundtruth.tum", tum_text([float(k) for k in range(len(poses))],
                                                             traj))

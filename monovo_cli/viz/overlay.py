@@ -30,6 +30,7 @@ import cv2
 import numpy as np
 
 from monovo_cli.core.ground import default_threshold, rectangle_corners, select_points
+from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import InputError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import se3_inv
@@ -364,7 +365,7 @@ class OverlayRenderer:
         for (x, y), c in zip(centres, colours):
             cv2.circle(out, (int(x), int(y)), self.dot * scale, tuple(int(v) for v in c), -1,
                        cv2.LINE_AA, SHIFT)
-        if status == "reanchored" or valid.sum() <= 0.5 * len(valid):
+        if status == FrameStatus.REANCHORED or valid.sum() <= 0.5 * len(valid):
             self._reanchor(image, world_from_cam)
 
     def _reanchor(self, image: np.ndarray, world_from_cam: np.ndarray) -> None:

@@ -18,6 +18,7 @@ from collections.abc import Sequence
 import cv2
 import numpy as np
 
+from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.plane import Plane
 
 BACKGROUND = (255, 255, 255)
@@ -148,9 +149,9 @@ def plot_trajectory(world_from_cam: np.ndarray, plane: Plane, *,
         st = list(statuses)
         for k in range(1, min(len(st), len(e))):
             c = (int(round(e[k, 0] * fix)), int(round(e[k, 1] * fix)))
-            if st[k] == "reanchored":
+            if st[k] == FrameStatus.REANCHORED:
                 cv2.circle(img, c, (r * fix) // 2, KEYFRAME, -1, cv2.LINE_AA, sh)
-            elif st[k] == "lost":
+            elif st[k] == FrameStatus.LOST:
                 d = r * fix
                 cv2.line(img, (c[0] - d, c[1] - d), (c[0] + d, c[1] + d), LOST, thick + 1,
                          cv2.LINE_AA, sh)
@@ -168,10 +169,10 @@ def plot_trajectory(world_from_cam: np.ndarray, plane: Plane, *,
     items += [("start", START, "dot"), ("end", END, "square")]
     if statuses is not None:
         st = list(statuses)[1:]
-        if "reanchored" in st:
-            items.append((f"keyframe ({st.count('reanchored')})", KEYFRAME, "small"))
-        if "lost" in st:
-            items.append((f"lost ({st.count('lost')})", LOST, "cross"))
+        if FrameStatus.REANCHORED in st:
+            items.append((f"keyframe ({st.count(FrameStatus.REANCHORED)})", KEYFRAME, "small"))
+        if FrameStatus.LOST in st:
+            items.append((f"lost ({st.count(FrameStatus.LOST)})", LOST, "cross"))
     (_, lh), _ = cv2.getTextSize("Ag", FONT, scale_text, 1)
     row = int(lh * 1.9)
     lw = max(cv2.getTextSize(t, FONT, scale_text, 1)[0][0] for t, _, _ in items) + 4 * r + 20
