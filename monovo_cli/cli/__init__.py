@@ -1,0 +1,17 @@
+"""The ``monovo`` command line: parse, set up logging and progress, one library call per command.
+
+:mod:`~monovo_cli.cli.group` holds the group (errors to exit statuses, logging, signals,
+the progress bar), :mod:`~monovo_cli.cli.options` the options several commands share, and
+each command has its own module. Heavy modules (numpy, OpenCV, the pipeline) are imported
+inside the commands, so that ``monovo --help`` starts at once and a batch worker can limit
+its threads before they load.
+"""
+
+from monovo_cli.cli import batch, evaluate, init, overlay, synth, track
+from monovo_cli.cli.group import main
+
+for _command in (synth.synth, init.init, track.track, overlay.overlay, evaluate.eval_,
+                 batch.batch):
+    main.add_command(_command)
+
+__all__ = ["main"]

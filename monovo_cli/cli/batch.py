@@ -1,0 +1,109 @@
+"""``monovo batch``: every sequence under a folder, on local processes or a Dask cluster."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from monovo_cli.cli.group import BadInput, log_level, progress_bar, setup
+from monovo_cli.cli.options import (
+    common,
+    model_options,
+    output_option,
+    overwrite_option,
+    relative_name,
+    skip_bad_frames_option,
+    tracking_options,
+)
+
+
+@click.command()
+@click.argument("root", type=click.Path(path_type=Path))
+@output_option("OUTROOT: each sequence's outputs go to OUTROOT/<its path under ROOT>/, "
+               "plus OUTROOT/summary.csv.")
+@click.option("--glob", "pattern", default=None, metavar="PATTERN",
+              help="The sequences are the directories under ROOT matching PATTERN "
+                   "(e.g. 'sol*/navcam', '**/left') [default: every folder holding frames/ "
+                   "and init.yaml].")
+@click.option("--workers", type=click.IntRange(min=1), default=None,
+              help="Sequences tracked at once, one process each [default: the number of cores; "
+                   "with --scheduler, the cluster's workers].")
+@click.option("--scheduler", default=None, metavar="ADDR",
+              help="Run on this Dask scheduler (tcp://HOST:8786); needs pip install "
+                   "'monovo[dask]', and the workers must see ROOT and OUTROOT at the same paths.")
+@click.option("--dask", "use_dask", is_flag=True,
+              help="Run on a local Dask cluster of --workers processes.")
+@click.option("--resume", is_flag=True,
+              help="Skip the sequences whose outputs are complete (done.json checks out); "
+                   "redo the others.")
+@overwrite_option("Redo every sequence, replacing its outputs.")
+@skip_bad_frames_option("the sequence fails")
+@tracking_options
+@model_options
+@common
+@click.pass_context
+def batch(ctx, root, out, pattern, workers, scheduler, use_dask, resume, overwrite,
+          skip_bad_frames, mask, no_photometric, max_step, prior, covariance, levels, threshold,
+          max_points, robust, reanchor_fraction, quiet, verbose):
+    """Track every sequence under ROOT (each a folder holding frames/ and init.yaml).
+
+    \b
+    Outputs as 'monovo track' in OUTROOT/<relative path>/, then done.json last;
+    OUTROOT/summary.csv has a row per sequence (status ok / skipped / failed).
+    A failed sequence never stops the others. --prior and --covariance name a file
+    inside each sequence folder / output folder; --mask is one PNG for all.
+    Exit status: 0 all done; 2 some sequences had bad input (after finishing the
+    rest); 1 some failed on an internal error or a lost worker.
+      monovo batch archive -o results --workers 2
+      monovo batch archive -o results --resume
+      monovo batch archive -o results --scheduler tcp://head:8786
+    """
+    setup(ctx, quiet, verbose)
+    import contextlib
+
+    from monovo_cli.pipeline.batch import run_batch
+
+    if resume and overwrite:
+        raise click.UsageError("--resume and --overwrite exclude each other: --resume keeps "
+                               "the complete sequences, --overwrite redoes all")
+    for name, value in (("--prior", prior), ("--covariance", covariance)):
+        try:
+            relative_name(ctx, None, value)
+        except click.BadParameter as exc:
+            exc.param_hint = name
+            raise
+    options = {"levels": levels, "threshold": threshold, "max_points": max_points,
+               "robust": robust, "reanchor_fraction": reanchor_fraction,
+               "photometric": not no_photometric, "max_step_m": max_step[0],
+               "max_step_deg": max_step[1], "mask": str(mask.resolve()) if mask else None,
+               "prior": str(prior) if prior else None,
+               "covariance": str(covariance) if covariance else None,
+               "skip_bad_frames": skip_bad_frames}
+    if quiet:
+        redirect = contextlib.nullcontext()
+    else:  # warnings about failed sequences above the bar, not through it
+        from tqdm.contrib.logging import logging_redirect_tqdm
+
+        redirect = logging_redirect_tqdm()
+    with progress_bar(quiet, "seq") as bar, redirect:
+        s = run_batch(root, out, options, pattern=pattern, workers=workers,
+                      scheduler=scheduler, dask=use_dask, resume=resume, overwrite=overwrite,
+                      log_level=log_level(quiet, verbose), progress=bar)
+    n, failed = len(s.results), s.failed
+    if not quiet:
+        click.echo(f"{n} sequence(s) in {s.seconds:.1f} s: {s.count('ok')} tracked, "
+                   f"{s.count('skipped')} skipped (complete), {len(failed)} failed; "
+                   f"summary in {s.summary_path}")
+    if verbose:
+        for r in s.internal_errors:
+            if r.get("traceback"):
+                click.echo(f"{r['sequence']}:\n{r['traceback']}", err=True)
+    if failed:
+        first = failed[0]
+        msg = (f"{len(failed)} of {n} sequence(s) failed, first {first['sequence']}: "
+               f"{first['error']} (all in {s.summary_path})")
+        if s.internal_errors:
+            click.echo(f"Error: {msg}", err=True)
+            ctx.exit(1)
+        raise BadInput(msg)

@@ -1,0 +1,163 @@
+"""The ``monovo`` group: library errors to exit statuses, logging, signals, the progress bar.
+
+Exit status (SPEC): 0 success; 2 bad usage or bad input (one line on stderr, no traceback);
+1 internal error; 130 on Ctrl-C, 143 on SIGTERM (what was done is kept on disk).
+"""
+
+from __future__ import annotations
+
+import errno
+import logging
+import signal
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
+from typing import NoReturn
+
+import click
+
+from monovo_cli import __version__
+from monovo_cli.errors import MonovoError
+
+log = logging.getLogger("monovo_cli")
+
+
+class BadInput(click.ClickException):
+    """A MonovoError at the edge: one line on stderr, exit status 2."""
+
+    exit_code = 2
+
+
+class Terminated(BaseException):
+    """SIGTERM arrived (a BaseException, like KeyboardInterrupt, so no ``except Exception``
+    in the library swallows it)."""
+
+
+def _on_sigterm(signum, frame):  # noqa: ARG001
+    raise Terminated()
+
+
+_FULL_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG}
+_ENVIRONMENT_ERRNOS = _FULL_ERRNOS | {errno.EROFS, errno.EIO, errno.EACCES, errno.EPERM}
+
+
+class MonovoGroup(click.Group):
+    """Turns library errors into one-line messages with the SPEC's exit statuses."""
+
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except MonovoError as exc:
+            if ctx.meta.get("monovo.verbose"):
+                log.exception("details")
+            raise BadInput(str(exc)) from None
+        except (click.ClickException, click.exceptions.Exit, click.exceptions.Abort):
+            raise
+        except KeyboardInterrupt:
+            click.echo("monovo: interrupted; the frames done so far are on disk", err=True)
+            sys.exit(130)
+        except Terminated:
+            click.echo("monovo: terminated; the frames done so far are on disk", err=True)
+            sys.exit(143)
+        except BrokenPipeError:
+            # The reader of -o - went away (e.g. '| head'): stop quietly like any Unix
+            # filter killed by SIGPIPE; stdout is pointed at /dev/null so that Python's
+            # final flush does not complain.
+            _silence_stdout()
+            sys.exit(141)
+        except OSError as exc:
+            if exc.errno not in _ENVIRONMENT_ERRNOS:
+                _internal_error(ctx, exc)
+            if ctx.meta.get("monovo.verbose"):
+                log.exception("details")
+            # A full disk, a read-only or failing device: the outputs cannot be written,
+            # which the user can fix (exit 2), not a bug. No file name: a stream (motion.csv
+            # or stdout), whose unflushed rest must not fail again at exit.
+            if exc.filename is None:
+                _silence_stdout()
+            where = f"{exc.filename}: " if exc.filename is not None else "cannot write the outputs: "
+            hint = ("; free some space or write elsewhere (the rows done so far are kept)"
+                    if exc.errno in _FULL_ERRNOS else "")
+            raise BadInput(f"{where}{exc.strerror}{hint}") from None
+        except Exception as exc:
+            _internal_error(ctx, exc)
+
+
+def _internal_error(ctx: click.Context, exc: Exception) -> NoReturn:
+    """A bug: one line on stderr and exit 1, or the traceback with -v."""
+    if ctx.meta.get("monovo.verbose"):
+        raise exc
+    msg = f"internal error: {type(exc).__name__}: {exc} (run with -v for the traceback)"
+    click.echo(f"Error: {msg}", err=True)
+    sys.exit(1)
+
+
+def _silence_stdout() -> None:
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError, AttributeError):  # no real stdout (e.g. CliRunner)
+        pass
+
+
+def log_level(quiet: bool, verbose: bool) -> int:
+    """The ``monovo_cli`` loggers' level: DEBUG with -v, ERROR with -q, else WARNING."""
+    return logging.DEBUG if verbose else (logging.ERROR if quiet else logging.WARNING)
+
+
+def setup(ctx: click.Context, quiet: bool, verbose: bool) -> None:
+    """What every command does first: remember -q/-v, configure logging, catch SIGTERM."""
+    ctx.meta["monovo.verbose"] = verbose
+    ctx.meta["monovo.quiet"] = quiet
+    level = log_level(quiet, verbose)
+    logging.basicConfig(level=level, format="monovo: %(levelname)s: %(message)s", stream=sys.stderr)
+    logging.getLogger("monovo_cli").setLevel(level)
+    signal.signal(signal.SIGTERM, _on_sigterm)
+
+
+class _Progress:
+    """A tqdm bar on stderr driven by the library's ``progress(done, total)`` callback."""
+
+    def __init__(self, quiet: bool, unit: str) -> None:
+        self.quiet, self.unit, self.bar = quiet, unit, None
+
+    def __call__(self, done: int, total: int) -> None:
+        if self.quiet:
+            return
+        if self.bar is None:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=total, unit=self.unit, file=sys.stderr, dynamic_ncols=True,
+                            leave=False)
+        self.bar.update(done - self.bar.n)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+@contextmanager
+def progress_bar(quiet: bool, unit: str) -> Iterator[_Progress]:
+    """A ``progress(done, total)`` callback drawing a tqdm bar of ``unit`` on stderr (none
+    when ``quiet``), closed on the way out whatever happens."""
+    bar = _Progress(quiet, unit)
+    try:
+        yield bar
+    finally:
+        bar.close()
+
+
+@click.group(cls=MonovoGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, "--version", prog_name="monovo")
+def main() -> None:
+    """Monocular visual odometry over planar ground from intensity differences.
+
+    \b
+    A camera looks at the ground; monovo estimates its 6-DoF motion frame by frame
+    (G. Martinez, intensity-difference based monocular visual odometry). Typical use:
+      monovo synth demo --preset drive --frames 100
+      monovo track demo -o out            # init.yaml found beside frames/
+    """

@@ -1,0 +1,52 @@
+"""``monovo overlay``: the glued-triangle video."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from monovo_cli.cli.group import progress_bar, setup
+from monovo_cli.cli.options import (
+    common,
+    output_option,
+    overwrite_option,
+    params_option,
+    parse_triangle,
+    seq_argument,
+)
+
+
+@click.command()
+@seq_argument
+@params_option
+@click.option("-t", "--trajectory", type=click.Path(path_type=Path), required=True,
+              help="The trajectory.csv (or .tum) of SEQ from 'monovo track'; status and msd "
+                   "come from motion.csv beside it.")
+@output_option("overlay.mp4 (H.264), overlay.gif, or a directory for PNG frames.", path=False)
+@click.option("--triangle", callback=parse_triangle, default=None, metavar="X1,Y1,X2,Y2,X3,Y3",
+              help="Triangle vertices in frame-0 pixels, lifted onto the ground "
+                   "[default: equilateral, centred in the ground region].")
+@click.option("--points", is_flag=True,
+              help="Also draw the observation points, coloured by intensity residual "
+                   "(green: within the noise, red: 3 sqrt(2) sigma and more).")
+@click.option("--fps", type=click.FloatRange(min=0.1, max=240.0), default=10.0, show_default=True)
+@overwrite_option("Replace the output if it exists.")
+@common
+@click.pass_context
+def overlay(ctx, seq, params, trajectory, out, triangle, points, fps, overwrite, quiet, verbose):
+    """Render the glued triangle: a triangle on the ground moved with the estimated poses.
+
+    \b
+    If the estimates are right it stays glued to the ground (the paper's Figs. 10.4-10.7):
+      monovo track demo -o out
+      monovo overlay demo -t out/trajectory.csv -o out/overlay.mp4
+    """
+    setup(ctx, quiet, verbose)
+    from monovo_cli.pipeline.overlay import overlay_sequence
+
+    with progress_bar(quiet, "frame") as bar:
+        s = overlay_sequence(seq, params, trajectory, out, triangle_px=triangle, points=points,
+                             fps=fps, overwrite=overwrite, progress=bar)
+    if not quiet:
+        click.echo(f"wrote {s.frames} frames to {s.out} in {s.seconds:.1f} s")

@@ -1,0 +1,56 @@
+"""``monovo synth``: a synthetic sequence with ground truth."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from monovo_cli.cli.group import progress_bar, setup
+from monovo_cli.cli.options import common, overwrite_option, parse_size
+
+
+@click.command()
+@click.argument("out", type=click.Path(path_type=Path))
+@click.option("--preset", type=click.Choice(["pairs", "drive"]), default="drive", show_default=True)
+@click.option("--frames", type=click.IntRange(min=1), default=None,
+              help="Frames of the drive, or number of pairs [default: 300 / 100].")
+@click.option("--size", callback=parse_size, default=None, metavar="WxH",
+              help="Image size [default: 512x512 drive, 688x544 pairs].")
+@click.option("--noise-var", type=click.FloatRange(min=0.0), default=10.0, show_default=True,
+              help="Variance of the added Gaussian noise (grey levels^2).")
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--texture", type=click.Path(path_type=Path), default=None,
+              help="A photo to use as ground texture instead of the procedural one.")
+@click.option("--max-translation", type=click.FloatRange(min=0.0), default=None,
+              help="pairs: translations uniform in +-this per axis, m [default: 10 m at 100 m].")
+@click.option("--exposure", is_flag=True, help="Vary gain and bias from frame to frame.")
+@click.option("--clean-frame0", is_flag=True,
+              help="Frame 0 (of the drive, of each pair) without noise: the paper's synthetic "
+                   "experiment, where the ground's texture is exactly known.")
+@overwrite_option("Replace OUT if it exists.")
+@common
+@click.pass_context
+def synth(ctx, out, preset, frames, size, noise_var, seed, texture, max_translation, exposure,
+          clean_frame0, overwrite, quiet, verbose):
+    """Write a synthetic sequence with ground truth into OUT."""
+    setup(ctx, quiet, verbose)
+    from monovo_cli.synth.write import synthesize
+
+    if not overwrite and out.is_dir() and any(out.iterdir()):
+        from monovo_cli.errors import OutputError
+
+        raise OutputError(f"{out}: already exists and is not empty; use --overwrite or another OUT")
+    if overwrite and out.exists():
+        import shutil
+
+        if out.is_dir():
+            shutil.rmtree(out)
+        else:
+            out.unlink()
+    with progress_bar(quiet, "frame") as bar:
+        s = synthesize(out, preset=preset, frames=frames, size=size, noise_var=noise_var,
+                       seed=seed, texture=texture, max_translation=max_translation,
+                       exposure=exposure, clean_frame0=clean_frame0, progress=bar)
+    if not quiet:
+        click.echo(f"wrote {s.sequences} sequence(s) of {s.frames_per_sequence} frames to {out}")

@@ -1,0 +1,59 @@
+"""``monovo track``: every frame's motion, motion.csv and the trajectory."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from monovo_cli.cli.group import progress_bar, setup
+from monovo_cli.cli.options import (
+    common,
+    model_options,
+    output_option,
+    overwrite_option,
+    params_option,
+    seq_argument,
+    skip_bad_frames_option,
+    track_options,
+    tracking_options,
+)
+
+
+@click.command()
+@seq_argument
+@params_option
+@output_option("Output directory, or '-' to stream motion.csv rows to stdout.", path=False)
+@click.option("--model", type=click.Path(path_type=Path), default=None,
+              help="A model.npz from 'monovo init' to start from.")
+@overwrite_option("Replace results already in the output directory.")
+@click.option("--groundtruth", type=click.Path(path_type=Path), default=None, metavar="GT.tum",
+              help="A TUM ground truth to draw beside the estimate in trajectory.png.")
+@skip_bad_frames_option("stop with an error, keeping the rows done")
+@tracking_options
+@model_options
+@common
+@click.pass_context
+def track(ctx, seq, params, out, model, overwrite, skip_bad_frames, levels, threshold, max_points,
+          robust, reanchor_fraction, quiet, verbose, groundtruth, mask, no_photometric, max_step,
+          prior, covariance):
+    """Estimate the motion of every frame of SEQ; write motion.csv and the trajectory.
+
+    With -o DIR also trajectory.png, the path seen from above on the ground plane.
+    """
+    setup(ctx, quiet, verbose)
+    from monovo_cli.pipeline.track import track_sequence
+
+    to_stdout = out == "-"
+    with progress_bar(quiet, "frame") as bar:
+        s = track_sequence(seq, params, None if to_stdout else Path(out),
+                           track_options(levels, threshold, max_points, robust, reanchor_fraction,
+                                         photometric=not no_photometric, max_step=max_step),
+                           groundtruth=groundtruth, mask=mask, prior=prior, covariance=covariance,
+                           model=model, overwrite=overwrite, skip_bad_frames=skip_bad_frames,
+                           progress=bar)
+    if not quiet:
+        click.echo(f"tracked {s.frames} frames in {s.seconds:.1f} s ({s.fps:.1f} frames/s): "
+                   f"mean msd {s.mean_msd:.2f}, {s.reanchored} re-anchored, {s.lost} lost, "
+                   f"path length {s.distance_m:.3f} m"
+                   + ("" if to_stdout else f"; outputs in {out}"), err=to_stdout)
