@@ -241,3 +241,45 @@ def track_options(args):
     from monovo_cli.core.odometry import TrackOptions
 
     return TrackOptions(max_points=getattr(args, "max_points", None))
+
+
+# --------------------------------------------------------------------------- MER spacing
+
+MER_HEIGHT = 1.5  # m, mast camera above the ground
+MER_PITCH_DEG = 45.0  # optical axis below the horizontal
+MER_FOV_DEG = 45.0  # horizontal field of view
+MER_STEP = 0.75  # m per frame, forward
+MER_TURN_DEG = 18.0  # per frame, turning in place
+
+
+def mer_camera(width: int, height: int | None = None):
+    """The MER-like camera: ``MER_FOV_DEG`` horizontal field of view, no distortion."""
+    from monovo_cli.geometry.camera import PinholeCamera
+
+    height = width if height is None else height
+    f = 0.5 * width / np.tan(np.radians(0.5 * MER_FOV_DEG))
+    return PinholeCamera(width, height, f, f, (width - 1) / 2.0, (height - 1) / 2.0)
+
+
+def mer_pose(x: float, y: float, heading_deg: float, *, height: float = MER_HEIGHT,
+             pitch_deg: float = MER_PITCH_DEG) -> np.ndarray:
+    """``g_from_cam`` (4x4) of the mast camera at ground position ``(x, y)`` m, looking along
+    ``heading_deg`` (about the ground normal z_G, from x_G) and ``pitch_deg`` below the horizon."""
+    from monovo_cli.geometry.lie import make_pose
+    from monovo_cli.synth.motion import body_from_camera
+
+    a = np.radians(heading_deg)
+    Rz = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+    return make_pose(Rz @ body_from_camera(np.radians(pitch_deg)), np.array([x, y, height]))
+
+
+def mer_renderer(width: int, height: int | None = None, *, texture_seed: int = 3,
+                 supersample: int = 2, metres_per_texel: float = 0.004):
+    """``(camera, GroundRenderer)`` of the MER-like camera over the procedural Mars texture
+    (1024 texels, period 4.1 m at the default scale)."""
+    from monovo_cli.synth.render import GroundRenderer
+    from monovo_cli.synth.texture import GroundTexture, procedural_texture
+
+    cam = mer_camera(width, height)
+    tex = GroundTexture(procedural_texture(1024, texture_seed), metres_per_texel)
+    return cam, GroundRenderer(cam, tex, supersample=supersample)
