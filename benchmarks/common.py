@@ -211,9 +211,12 @@ def _points(value: str) -> int:
 
 def add_points_option(ap) -> None:
     """``--max-points N|all``: monovo's observation-point cap (default: the tool's own default)."""
+    from monovo_cli.core.odometry import TrackOptions
+
+    per = TrackOptions().pixels_per_point
     ap.add_argument("--max-points", type=_points, default=None, metavar="N|all",
                     help="monovo's cap on observation points at full resolution [default: "
-                         "monovo's default, one per 16 px]; 'all': every pixel above the "
+                         f"monovo's default, one per {per} pixels]; 'all': every pixel above the "
                          "gradient threshold (monovo's dense setting, `--max-points all`)")
 
 

@@ -1,4 +1,4 @@
-"""One CliRunner test per command, SPEC headers pinned, errors as one line with status 2."""
+"""One CliRunner test per command, the documented CSV headers pinned, errors as one line with status 2."""
 
 import csv
 import subprocess

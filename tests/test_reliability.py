@@ -1,4 +1,4 @@
-"""Bad input and faults: one clear line and the SPEC's exit status, nothing lost.
+"""Bad input and faults: one clear line and the documented exit status, nothing lost.
 
 One parametrised case per row of docs/reliability.md (the rows come from
 ``reliability_cases.CASES``, which also generates the document), then what the rows

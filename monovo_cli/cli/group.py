@@ -1,7 +1,8 @@
 """The ``monovo`` group: library errors to exit statuses, logging, signals, the progress bar.
 
-Exit status (SPEC): 0 success; 2 bad usage or bad input (one line on stderr, no traceback);
-1 internal error; 130 on Ctrl-C, 143 on SIGTERM (what was done is kept on disk).
+Exit status (docs/guide.md "Commands"): 0 success; 2 bad usage or bad input (one line on
+stderr, no traceback); 1 internal error; 130 on Ctrl-C, 143 on SIGTERM (what was done is
+kept on disk).
 """
 
 from __future__ import annotations
@@ -42,7 +43,7 @@ _ENVIRONMENT_ERRNOS = _FULL_ERRNOS | {errno.EROFS, errno.EIO, errno.EACCES, errn
 
 
 class MonovoGroup(click.Group):
-    """Turns library errors into one-line messages with the SPEC's exit statuses."""
+    """Turns library errors into one-line messages with the documented exit statuses."""
 
     def invoke(self, ctx: click.Context):
         try:

@@ -37,9 +37,10 @@ The current frame is then sampled there by OpenCV's remap: bicubically at the fi
 (Keys' kernel; bilinear interpolation misses fine texture by twice as much, see
 ``benchmarks/interpolation.py``), bilinearly at the coarser ones.
 
-Beyond the paper: the rows o_i use the interpolating cubic B-spline's derivative at the
-keyframe pixels for g (``ground.spline_gradient``);
-an affine brightness model ``I_cur ~ gain I_key + bias`` is estimated
+Beyond the paper: at the finest level the rows o_i take g from the derivative of the
+interpolating cubic B-spline at the keyframe pixels (``image.gradients.spline_gradient``, a
+better gradient than Sobel's; the frame itself is sampled with OpenCV's bicubic kernel, not
+with that spline); an affine brightness model ``I_cur ~ gain I_key + bias`` is estimated
 jointly (two more columns ``(I_i, 1)`` in O, section "photometric" of docs/algorithm.md),
 the weights W come from a Huber (or Tukey) M-estimator with the scale from the residuals'
 median absolute deviation, and the covariance of the estimate is sigma^2 (O^T W O)^-1 with
@@ -71,7 +72,8 @@ class EstimatorOptions:
     tukey_c: float = 4.685
     photometric: bool = True
     min_valid_points: int = 20
-    interpolation: str = "cubic"     # at the finest level: "cubic" (B-spline) or "linear"
+    interpolation: str = "cubic"     # at the finest level: OpenCV's "cubic" (Keys), "linear"
+    #                                  or "lanczos4" (image.sampling.INTERPOLATION)
 
 
 def observation_matrix(X: np.ndarray, grad: np.ndarray, fx: float, fy: float,

@@ -140,7 +140,8 @@ def select_points(image: np.ndarray, camera: PinholeCamera, plane: Plane, corner
     the model rectangle (4, 3) in the keyframe camera, ``mask`` (H, W) bool of usable pixels.
     Pixels inside the projected rectangle with ``|Sobel| > threshold`` are kept, at most
     ``max_points`` of them spread evenly over the image. Their gradients are the Sobel ones,
-    or with ``spline`` those of the cubic B-spline the estimator samples this level with.
+    or with ``spline`` the exact derivatives of the cubic B-spline interpolating the level
+    (a better estimate of the gradient of the sampled image than Sobel's).
     """
     h, w = image.shape
     gx, gy = sobel_gradient(image)

@@ -7,7 +7,7 @@ Each frame is estimated against the current keyframe (the paper's ground model, 
 the accumulated motion), so drift grows per keyframe, not per frame. A new keyframe is
 anchored on the current frame when too few of the keyframe's points stay in view or the
 model covers too little of the image; at that moment the plane is re-estimated from the two
-images with the mounting pose as a prior (:mod:`monovo_cli.plane`). A frame whose estimate
+images with the mounting pose as a prior (:mod:`monovo_cli.core.plane_fit`). A frame whose estimate
 fails the divergence checks is marked ``lost``, carries the constant-velocity prediction,
 and the model is re-anchored on the next good frame.
 """
@@ -15,7 +15,7 @@ and the model is re-anchored on the next good frame.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -74,7 +74,6 @@ class TrackOptions:
     max_condition: float = 1e7
     max_step_m: float | None = None
     max_step_deg: float | None = None
-    refine_plane: bool = True
     plane_prior_deg: float = 2.0
     distance_pull: float = 0.1
     estimator: EstimatorOptions = field(default_factory=EstimatorOptions)
@@ -309,7 +308,7 @@ class Odometry:
         recovering = self._state is OdometryState.RECOVERING
         reanchor = recovering or self._needs_reanchor(est, key, cur_from_key)
         plane_cur = key.plane.in_frame(cur_from_key)
-        if reanchor and self.options.refine_plane and key.index != index:
+        if reanchor and key.index != index:
             # The joint refinement gives the next keyframe its plane (in this camera); the
             # pose keeps the fixed-plane estimate, whose error is smaller (the free normal
             # adds variance to the joint solution's motion).
@@ -445,8 +444,7 @@ class Odometry:
 def track(frames: Iterable[tuple[int, float, np.ndarray]], camera: PinholeCamera, plane: Plane,
           region: tuple[int, int, int, int], options: TrackOptions | None = None, *,
           mask: np.ndarray | None = None, first_keyframe: Keyframe | None = None,
-          priors: Mapping[int, np.ndarray] | None = None,
-          on_keyframe: Callable[[Keyframe], None] | None = None) -> Iterator[FrameResult]:
+          priors: Mapping[int, np.ndarray] | None = None) -> Iterator[FrameResult]:
     """Yield a :class:`FrameResult` per ``(index, timestamp, image)``, frame 0 first.
 
     ``priors`` maps a frame index to its prior motion T_{k-1}_k (4x4).
@@ -458,7 +456,5 @@ def track(frames: Iterable[tuple[int, float, np.ndarray]], camera: PinholeCamera
     except StopIteration:
         return
     yield odo.start(index, ts, image)
-    if on_keyframe is not None:
-        on_keyframe(odo.keyframe)
     for index, ts, image in it:
         yield odo.step(index, ts, image, None if priors is None else priors.get(index))

@@ -10,8 +10,6 @@ import math
 
 import numpy as np
 
-_EPS = 1e-12
-
 
 def skew(w: np.ndarray) -> np.ndarray:
     """The 3x3 cross-product matrix ``[w]x`` with ``[w]x @ a == cross(w, a)``."""

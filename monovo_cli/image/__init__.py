@@ -1,0 +1,3 @@
+"""Image operations: pyramids, sub-pixel sampling (OpenCV remap), gradients and the noise
+estimate.
+"""

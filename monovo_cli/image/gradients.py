@@ -40,9 +40,9 @@ def bspline_coefficients(image: np.ndarray) -> np.ndarray:
 def spline_gradient(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Exact derivatives (gx, gy) at the pixels of the cubic B-spline interpolating ``image``.
 
-    The estimator samples the finest level with that spline, so the observation matrix
-    built from these gradients is the derivative of what it compares (Gauss-Newton then
-    converges in fewer iterations than with the Sobel estimate).
+    The estimator's finest-level observation matrix uses them: they are closer to the
+    gradient of the band-limited image than Sobel's smoothed difference (the frame itself
+    is sampled with OpenCV's bicubic remap, whose derivative is not continuous).
     """
     c = bspline_coefficients(image)
     gx = cv2.sepFilter2D(c, cv2.CV_32F, _SPLINE_SLOPE, _SPLINE_VALUE, borderType=cv2.BORDER_REFLECT)

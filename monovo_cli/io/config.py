@@ -1,4 +1,4 @@
-"""The initial-pose file (``init.yaml``, SPEC "Input: the initial-pose file").
+"""The initial-pose file (``init.yaml``, docs/guide.md "File formats").
 
 This module is the only place where raw YAML exists: :func:`load_init` turns a file
 into a validated :class:`InitConfig` (a :class:`~monovo_cli.geometry.camera.PinholeCamera`,
@@ -361,22 +361,6 @@ def _ground_section(name: str, value: Any, camera: PinholeCamera) -> tuple[Plane
     return plane, region
 
 
-def _rays(camera: PinholeCamera, uv: np.ndarray) -> np.ndarray:
-    """``camera.rays(uv)``; where cv2 lacks ``undistortPointsIter`` (OpenCV 5), the same
-    iterative undistortion through ``cv2.undistortPoints(..., criteria)``."""
-    try:
-        return camera.rays(uv)
-    except AttributeError:
-        import cv2
-
-        pts = cv2.undistortPoints(
-            np.asarray(uv, dtype=float).reshape(-1, 1, 2), camera.K,
-            np.asarray(camera.distortion, dtype=float),
-            criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12),
-        ).reshape(-1, 2)
-        return np.concatenate([pts, np.ones((len(pts), 1))], axis=1)
-
-
 def _check_visible(name: str, camera: PinholeCamera, plane: Plane, region: Region) -> None:
     """The plane must lie in front of the camera and be hit by every ray of the region."""
     n = plane.normal
@@ -396,7 +380,7 @@ def _check_visible(name: str, camera: PinholeCamera, plane: Plane, region: Regio
     shown = f"[{x0}, {y0}, {x1}, {y1}]"
     try:
         with np.errstate(all="ignore"):
-            rays = _rays(camera, border)
+            rays = camera.rays(border)
     except Exception:  # cv2.error from undistortion of absurd coefficients
         rays = np.full((len(border), 3), np.nan)
     if not np.all(np.isfinite(rays)):

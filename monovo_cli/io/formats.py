@@ -1,8 +1,8 @@
-"""Writers and readers of monovo's files: motion CSV, trajectory CSV, TUM (SPEC.md).
+"""Writers and readers of monovo's text files: motion CSV, trajectory CSV, TUM (docs/guide.md "File formats").
 
-Streaming rows are flushed one by one so an interrupted run keeps every whole row;
-final files are written to a temporary name in the same directory and renamed, so no
-half-written file ever carries a final name.
+:class:`MotionWriter` streams motion.csv rows and flushes each, so an interrupted run keeps
+every whole row; the whole-file formats are built as text (``*_text``) for the caller to
+write atomically (:mod:`monovo_cli.io.atomic`). Readers raise one-line InputErrors.
 """
 
 from __future__ import annotations
@@ -204,7 +204,8 @@ def _frame_number(value: float, field: str, path: Path, lineno: int) -> int:
 
 
 def read_motion_csv(path: Path) -> tuple[np.ndarray, np.ndarray, list[str]]:
-    """Read a motion CSV (SPEC columns first): frames (N,), ``prev_from_cur`` (N, 4, 4), statuses."""
+    """Read a motion CSV (the documented columns first): frames (N,), ``prev_from_cur``
+    (N, 4, 4) and statuses (N strings; "ok" where the file has no status column)."""
     path = Path(path)
     frames, poses, statuses = [], [], []
     for i, r in _csv_rows(path, "motion CSV", MOTION_COLUMNS[:7]):
@@ -219,7 +220,7 @@ def read_motion_csv(path: Path) -> tuple[np.ndarray, np.ndarray, list[str]]:
 
 
 def read_trajectory_csv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Read a trajectory.csv (SPEC columns first): frames (N,), timestamps (N,) s and
+    """Read a trajectory.csv (the documented columns first): frames (N,), timestamps (N,) s and
     ``world_from_cam`` poses (N, 4, 4). Frames must be distinct whole numbers."""
     path = Path(path)
     frames, ts, poses = [], [], []
@@ -239,7 +240,7 @@ def read_trajectory_csv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]
 
 
 def read_motion_stats(path: Path) -> dict[int, tuple[str, float]]:
-    """``{frame: (status, msd)}`` from a motion.csv (SPEC columns first)."""
+    """``{frame: (status, msd)}`` from a motion.csv (the documented columns first)."""
     path = Path(path)
     out: dict[int, tuple[str, float]] = {}
     for i, r in _csv_rows(path, "motion CSV", MOTION_COLUMNS):

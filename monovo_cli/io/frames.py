@@ -1,4 +1,4 @@
-"""Input sequences (SPEC "Input: a sequence"): where file paths stop and grey images start.
+"""Input sequences (docs/guide.md "File formats"): where file paths stop and grey images start.
 
 A sequence is a directory of image files (``IMAGE_EXTENSIONS``, case-insensitive) in
 natural-sort order, plus an optional ``times.txt`` (one timestamp in seconds per line,

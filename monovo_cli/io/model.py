@@ -13,7 +13,8 @@ from monovo_cli.io.atomic import atomic_write_bytes
 
 
 def save_model(path: Path, keyframe, camera, region) -> None:
-    """Save a ground model (a :class:`~monovo_cli.odometry.Keyframe`) to ``model.npz`` atomically."""
+    """Save a ground model (a :class:`~monovo_cli.core.odometry.Keyframe`) of ``camera`` and
+    ``region`` (x0, y0, x1, y1 px) to ``model.npz`` atomically."""
     path = Path(path)
     arrays = {
         "format": np.array("monovo-model-1"),
@@ -37,7 +38,10 @@ def save_model(path: Path, keyframe, camera, region) -> None:
 
 
 def load_model(path: Path):
-    """Load ``model.npz``: returns ``(camera_params (6,), region, Keyframe)``."""
+    """Load ``model.npz``: returns ``(camera, region, keyframe)``, a
+    :class:`~monovo_cli.geometry.camera.PinholeCamera`, the region (x0, y0, x1, y1) px and the
+    frame-0 :class:`~monovo_cli.core.odometry.Keyframe`. InputError when the file is not a
+    model or is damaged."""
     from monovo_cli.core.estimate import KeyLevel
     from monovo_cli.core.ground import LevelPoints
     from monovo_cli.core.odometry import Keyframe

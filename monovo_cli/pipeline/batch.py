@@ -1,19 +1,14 @@
 """``monovo batch``: track many sequences, on a local process pool or a Dask cluster.
 
 Tracking inside one sequence is sequential; sequences are independent, so an archive scales
-out over sequences. The pieces, each usable on its own:
-
-- :func:`find_sequences` -- every sequence under a root folder (a folder holding ``frames/``
-  and ``init.yaml``), or the folders matching a glob pattern;
-- :func:`track_one` -- one sequence, a pure importable function of plain arguments (paths and
-  a JSON-able options dict) that returns a plain dict and never raises for a bad sequence:
-  the thing to hand to ``dask.distributed``'s ``client.submit``, Ray's ``ray.remote`` or any
-  other engine;
-- :func:`is_complete` -- whether an output folder holds the finished results of the same
-  sequence and options (the ``done.json`` marker, written last by :func:`track_one`);
-- :func:`write_summary` -- ``summary.csv``, one row per sequence;
-- :func:`run_batch` -- all of the above over a local ``ProcessPoolExecutor`` (default) or a
-  Dask cluster (the optional ``monovo[dask]`` extra, imported only when asked for).
+out over sequences. The per-sequence pieces live in :mod:`monovo_cli.pipeline.batch_job`
+(and are importable from here): ``find_sequences``, ``track_one`` (one sequence, a pure
+function of plain arguments that returns a plain dict and never raises for a bad sequence:
+the thing to hand to ``dask.distributed``'s ``client.submit``, Ray's ``ray.remote`` or any
+other engine), ``is_complete`` (the ``done.json`` marker) and ``write_summary``. This module
+schedules them: :func:`run_batch` runs every sequence on a local ``ProcessPoolExecutor``
+(default) or a Dask cluster (the optional ``monovo[dask]`` extra, imported only when asked
+for), with ``resume`` skipping finished ones, and keeps ``summary.csv`` up to date.
 
 This module imports only the standard library at import time, so that a freshly spawned
 worker can limit OpenCV/BLAS/OpenMP to one thread before numpy and OpenCV are loaded.

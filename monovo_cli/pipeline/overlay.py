@@ -59,7 +59,7 @@ def overlay_sequence(seq: Path, params: Path | None, trajectory: Path, out: str 
     ``trajectory`` is a trajectory.csv (or .tum) of the sequence; status and msd come from
     motion.csv beside it when it is there. ``triangle_px`` (3, 2) frame-0 pixels (None: the
     default triangle). Frames 0 .. the last posed frame are written to ``out`` (.mp4, .gif or
-    a directory of PNGs, :mod:`monovo_cli.video`); frames without a pose show no triangle.
+    a directory of PNGs, :mod:`monovo_cli.io.video`); frames without a pose show no triangle.
     """
     from monovo_cli.io.formats import read_motion_stats
     from monovo_cli.io.video import open_sink

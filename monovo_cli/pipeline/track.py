@@ -1,9 +1,11 @@
-"""Whole-sequence jobs behind the CLI: read frames, run the tracker, stream the outputs.
+"""``monovo init`` and ``monovo track`` on a sequence: read frames, run the tracker, write.
 
-This is the only place that ties files to the pure core (odometry). Rows of motion.csv are
-written and flushed as frames are done; trajectory.csv / .tum are written atomically at
-the end, every ``checkpoint_every`` frames, and when the run is interrupted, so they always
-hold exactly the frames done.
+Opening a sequence with its init.yaml, preparing an output folder, building the frame-0
+model (:func:`init_model`), and the tracking run (:func:`track_sequence`) that ties the
+files to the pure core (:mod:`monovo_cli.core.odometry`). Rows of motion.csv are written
+and flushed as frames are done; trajectory.csv / .tum are written atomically at the end,
+every ``checkpoint_every`` frames, and when the run is interrupted, so they always hold
+exactly the frames done.
 """
 
 from __future__ import annotations
@@ -145,17 +147,18 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                    groundtruth: Path | None = None, mask: Path | None = None,
                    prior: Path | None = None, covariance: Path | None = None,
                    progress: Callable[[int, int], None] | None = None) -> TrackSummary:
-    """``monovo track``: estimate every frame's motion and write the SPEC outputs.
+    """``monovo track``: estimate every frame's motion and write motion.csv, trajectory.csv
+    and trajectory.tum (docs/guide.md "File formats").
 
     With an output directory, ``trajectory.png`` (the path from above, see
-    :mod:`monovo_cli.plots`) is written at the end; ``groundtruth`` (a TUM file) is drawn in it.
+    :mod:`monovo_cli.viz.plots`) is written at the end; ``groundtruth`` (a TUM file) is drawn in it.
 
     ``out_dir`` None streams motion.csv rows to stdout and writes no files.
     A frame after the first that cannot be read stops the run with an InputError (the rows
     done are kept); with ``skip_bad_frames`` it is recorded as ``lost`` at the
     constant-velocity prediction and tracking goes on.
     ``mask`` a PNG of the frame size whose non-zero pixels are never used (rover body, a
-    fixed shadow); ``prior`` a motion CSV (SPEC columns) whose motions replace the
+    fixed shadow); ``prior`` a motion CSV (motion.csv's columns) whose motions replace the
     constant-velocity guess; ``covariance`` a CSV written row by row with each frame's full
     6x6 covariance of (tx, ty, tz, rx, ry, rz) (m, rad).
     ``progress(done, total)`` is called after every frame.
@@ -267,7 +270,7 @@ def _read_mask(path: Path, cfg: InitConfig) -> np.ndarray:
 
 
 def _read_prior(path: Path) -> dict[int, np.ndarray]:
-    """--prior CSV (SPEC motion columns) -> {frame: T_{k-1}_k}."""
+    """--prior CSV (motion.csv's columns) -> {frame: T_{k-1}_k}."""
     from monovo_cli.io.formats import read_motion_csv
 
     idx, poses, _ = read_motion_csv(path)

@@ -11,9 +11,9 @@ from monovo_cli.synth.render import (
     GroundRenderer,
     default_camera,
     finish_frame,
-    footprint,
     ground_in_camera,
     ground_region,
+    pixel_size_on_plane,
     plane_homography,
     ray_depression,
     render_ground,
@@ -24,7 +24,7 @@ from monovo_cli.synth.write import SynthSummary, synthesize
 
 __all__ = [
     "REGION_MIN_DEPRESSION_DEG", "SKY_VALUE", "GroundRenderer", "GroundTexture", "SynthSummary",
-    "body_from_camera", "default_camera", "drive_poses", "finish_frame", "footprint",
-    "ground_in_camera", "ground_region", "load_texture", "pair_poses", "plane_homography",
+    "body_from_camera", "default_camera", "drive_poses", "finish_frame", "ground_in_camera",
+    "ground_region", "load_texture", "pair_poses", "pixel_size_on_plane", "plane_homography",
     "procedural_texture", "ray_depression", "render_ground", "supersample_matrix", "synthesize",
 ]

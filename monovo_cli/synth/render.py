@@ -56,7 +56,7 @@ def _grid(width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
     return np.meshgrid(np.arange(width, dtype=float), np.arange(height, dtype=float))
 
 
-def footprint(img_from_plane: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+def pixel_size_on_plane(img_from_plane: np.ndarray, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Size of pixels ``(x, y)`` on the plane, in plane units (max column norm of the Jacobian).
 
     ``img_from_plane`` maps plane coordinates to pixels; ``inf`` where the ray misses the plane.
@@ -138,10 +138,11 @@ class GroundRenderer:
         S = supersample_matrix(s)
         top = len(tex.levels) - 1
 
-        # Mip level per pixel: log2 of the texel footprint of one supersampled pixel
+        # Mip level per pixel: log2 of the size in texels of one supersampled pixel
         # (computed on the original grid, interpolated to the supersampled one).
+        img_from_texel = img_from_plane @ tex.plane_from_texel(0)
         with np.errstate(divide="ignore"):
-            lam = np.log2(footprint(img_from_plane @ tex.plane_from_texel(0), self._x, self._y))
+            lam = np.log2(pixel_size_on_plane(img_from_texel, self._x, self._y))
         lam -= math.log2(s)
         lam = np.where(np.isfinite(lam), lam, top)
         lam = np.clip(lam, 0.0, top).astype(np.float32)

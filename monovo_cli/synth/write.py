@@ -6,20 +6,20 @@ ground coordinates to pixels:
 
 * the texture is a periodic (seamlessly tiling) grey image with ``metres_per_texel``
   metres per texel, sampled bilinearly with wrap-around, through a mip-map pyramid
-  (trilinear, level chosen per pixel from the local footprint of the homography), so
+  (trilinear, level chosen per pixel from the pixel's size on the plane), so
   distant, foreshortened ground does not alias;
 * each image is rendered at ``SUPERSAMPLE`` times its resolution and area-averaged down,
   which integrates every pixel over its area. Supersampled pixel ``(i, j)`` has its
   centre at original pixel coordinate ``((i + 0.5)/s - 0.5, (j + 0.5)/s - 0.5)``, so the
-  top-left original pixel centre stays at (0, 0) (SPEC);
+  top-left original pixel centre stays at (0, 0) (docs/guide.md "File formats");
 * pixels whose ray misses the plane (above the horizon) get a plain sky value;
 * optional exposure change (gain, bias), then Gaussian noise, rounding, 8-bit PNG.
 
-Poses: ``g_from_cam_k`` maps camera-k points to G. The SPEC's world frame is camera 0,
-so the ground truth is ``T_0_k = inv(g_from_cam_0) @ g_from_cam_k`` and the relative
-motion ``T_{k-1}_k = inv(g_from_cam_{k-1}) @ g_from_cam_k``. The plane in camera 0 is
-``{X : n . X = d}`` with ``n = -R_0^T e_z`` (pointing from the camera to the ground) and
-``d`` the camera height.
+Poses: ``g_from_cam_k`` maps camera-k points to G. The world frame is camera 0's
+(docs/guide.md "Conventions"), so the ground truth is ``T_0_k = inv(g_from_cam_0) @
+g_from_cam_k`` and the relative motion ``T_{k-1}_k = inv(g_from_cam_{k-1}) @ g_from_cam_k``.
+The plane in camera 0 is ``{X : n . X = d}`` with ``n = -R_0^T e_z`` (pointing from the
+camera to the ground) and ``d`` the camera height.
 
 Presets:
 
@@ -67,9 +67,9 @@ from monovo_cli.synth.render import (
     _grid,
     default_camera,
     finish_frame,
-    footprint,
     ground_in_camera,
     ground_region,
+    pixel_size_on_plane,
     plane_homography,
 )
 from monovo_cli.synth.texture import (
@@ -232,7 +232,7 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
         nominal = make_pose(body_from_camera(math.radians(90.0 - PAIR_TILT_DEG)),
                             np.array([0.0, 0.0, PAIR_DISTANCE]))
     x, y = _grid(width, height)
-    metres_per_texel = 0.85 * float(np.min(footprint(plane_homography(cam, nominal), x, y)))
+    metres_per_texel = 0.85 * float(np.min(pixel_size_on_plane(plane_homography(cam, nominal), x, y)))
     if texture is not None:
         tex_image = load_texture(Path(texture))
         texture_desc = str(Path(texture).resolve())

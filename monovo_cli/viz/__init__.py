@@ -1,0 +1,2 @@
+"""Drawings, pure (arrays in, an image out): the glued-triangle overlay and the trajectory plot.
+"""

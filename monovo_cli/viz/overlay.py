@@ -4,7 +4,7 @@ The paper judges its estimates on real sequences by a triangle "motion compensat
 negative of the accumulated rover's 3D motion estimates" and projected into every frame
 (Figs. 10.4-10.7): if the estimates are right it stays glued to the ground. Here the
 triangle's vertices ``X`` (3, 3) live on the ground plane in camera-0 coordinates (the
-world frame, SPEC); in frame k with pose ``world_from_cam = T_0_k`` they are
+world frame, docs/guide.md "Conventions"); in frame k with pose ``world_from_cam = T_0_k`` they are
 ``cam_from_world @ X`` with ``cam_from_world = inv(T_0_k)``.
 
 Drawing: the polygon is clipped in 3D against the camera's near plane and its view frustum
@@ -12,7 +12,7 @@ Drawing: the polygon is clipped in 3D against the camera's near plane and its vi
 camera or far outside the image is drawn correctly; with lens distortion its edges are
 densified before projection, so they bend as the ground's straight lines do. Fill and
 outline are anti-aliased at 1/16 px (``cv2.LINE_AA``, ``shift=4``); pixel centres are
-integers, as in SPEC.
+integers (docs/guide.md "File formats").
 
 Optional observation points (``points=True``) are the ground model's points of the frame
 the overlay anchors on (frame 0, then every re-anchored frame) projected with the pose and
