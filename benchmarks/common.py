@@ -240,10 +240,12 @@ def options_note(args) -> str:
 
 
 def track_options(args):
-    """monovo's TrackOptions for a benchmark run (only ``--max-points`` is varied)."""
+    """monovo's TrackOptions for a benchmark run: the dataclass defaults, but ``--max-points``
+    when it was given (the only option the benchmarks vary)."""
     from monovo_cli.core.odometry import TrackOptions
 
-    return TrackOptions(max_points=getattr(args, "max_points", None))
+    max_points = getattr(args, "max_points", None)
+    return TrackOptions() if max_points is None else TrackOptions(max_points=max_points)
 
 
 # --------------------------------------------------------------------------- MER spacing

@@ -140,7 +140,7 @@ def test_resume_redoes_only_the_incomplete(archive, local_out, tmp_path):
         for name in COMPARED:
             assert (out / rel / name).read_bytes() == (local_out / rel / name).read_bytes()
     # other tracking options: nothing is complete any more
-    assert is_complete(archive / "s4", out / "s4", {"robust": "tukey"}) == (
+    assert is_complete(archive / "s4", out / "s4", {"track": {"estimator": {"robust": "tukey"}}}) == (
         False, "tracked with other options")
 
 

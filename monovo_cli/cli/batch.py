@@ -8,13 +8,13 @@ import click
 
 from monovo_cli.cli.group import BadInput, log_level, progress_bar, setup
 from monovo_cli.cli.options import (
+    LOOP,
     common,
-    model_options,
     output_option,
     overwrite_option,
-    relative_name,
+    side_inputs,
     skip_bad_frames_option,
-    tracking_options,
+    track_options,
 )
 
 
@@ -39,13 +39,12 @@ from monovo_cli.cli.options import (
                    "redo the others.")
 @overwrite_option("Redo every sequence, replacing its outputs.")
 @skip_bad_frames_option("the sequence fails")
-@tracking_options
-@model_options
+@side_inputs(batch=True)
+@track_options(LOOP)
 @common
 @click.pass_context
 def batch(ctx, root, out, pattern, workers, scheduler, use_dask, resume, overwrite,
-          skip_bad_frames, mask, no_photometric, max_step, prior, covariance, levels, threshold,
-          max_points, robust, reanchor_fraction, quiet, verbose):
+          skip_bad_frames, mask, prior, covariance, options, quiet, verbose):
     """Track every sequence under ROOT (each a folder holding frames/ and init.yaml).
 
     \b
@@ -61,25 +60,15 @@ def batch(ctx, root, out, pattern, workers, scheduler, use_dask, resume, overwri
     """
     setup(ctx, quiet, verbose)
     import contextlib
+    import dataclasses
 
     from monovo_cli.pipeline.batch import run_batch
 
     if resume and overwrite:
         raise click.UsageError("--resume and --overwrite exclude each other: --resume keeps "
                                "the complete sequences, --overwrite redoes all")
-    for name, value in (("--prior", prior), ("--covariance", covariance)):
-        try:
-            relative_name(ctx, None, value)
-        except click.BadParameter as exc:
-            exc.param_hint = name
-            raise
-    options = {"levels": levels, "threshold": threshold, "max_points": max_points,
-               "robust": robust, "reanchor_fraction": reanchor_fraction,
-               "photometric": not no_photometric, "max_step_m": max_step[0],
-               "max_step_deg": max_step[1], "mask": str(mask.resolve()) if mask else None,
-               "prior": str(prior) if prior else None,
-               "covariance": str(covariance) if covariance else None,
-               "skip_bad_frames": skip_bad_frames}
+    job = {"track": dataclasses.asdict(options), "mask": mask.resolve() if mask else None,
+           "prior": prior, "covariance": covariance, "skip_bad_frames": skip_bad_frames}
     if quiet:
         redirect = contextlib.nullcontext()
     else:  # warnings about failed sequences above the bar, not through it
@@ -87,7 +76,7 @@ def batch(ctx, root, out, pattern, workers, scheduler, use_dask, resume, overwri
 
         redirect = logging_redirect_tqdm()
     with progress_bar(quiet, "seq") as bar, redirect:
-        s = run_batch(root, out, options, pattern=pattern, workers=workers,
+        s = run_batch(root, out, job, pattern=pattern, workers=workers,
                       scheduler=scheduler, dask=use_dask, resume=resume, overwrite=overwrite,
                       log_level=log_level(quiet, verbose), progress=bar)
     n, failed = len(s.results), s.failed

@@ -5,31 +5,22 @@ from __future__ import annotations
 import click
 
 from monovo_cli.cli.group import setup
-from monovo_cli.cli.options import (
-    common,
-    model_options,
-    output_option,
-    params_option,
-    seq_argument,
-    track_options,
-)
+from monovo_cli.cli.options import MODEL, common, output_option, params_option, seq_argument, track_options
 
 
 @click.command()
 @seq_argument
 @params_option
 @output_option("The model file to write (model.npz).")
-@model_options
+@track_options(MODEL)
 @common
 @click.pass_context
-def init(ctx, seq, params, out, levels, threshold, max_points, robust, reanchor_fraction, quiet,
-         verbose):
+def init(ctx, seq, params, out, options, quiet, verbose):
     """Build the ground model and its observation points from frame 0 of SEQ."""
     setup(ctx, quiet, verbose)
     from monovo_cli.pipeline.track import init_model
 
-    key = init_model(seq, params, out, track_options(levels, threshold, max_points, robust,
-                                                     reanchor_fraction))
+    key = init_model(seq, params, out, options)
     if not quiet:
         counts = ", ".join(str(len(kl.points)) for kl in key.levels)
         click.echo(f"wrote {out}: {len(key.levels)} levels, observation points {counts}, "

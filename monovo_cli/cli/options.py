@@ -6,7 +6,12 @@ into the value the library wants or raises ``click.BadParameter`` quoting the ba
 
 from __future__ import annotations
 
+import functools
+import importlib
+import inspect
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -61,9 +66,9 @@ def parse_size(ctx, param, value):  # noqa: ARG001
 
 
 def parse_max_step(ctx, param, value):  # noqa: ARG001
-    """--max-step METRES[,DEGREES] -> (m, deg) with None for what is not given."""
+    """--max-step METRES[,DEGREES] -> (m, deg or None); None when not given."""
     if value is None:
-        return None, None
+        return None
     try:
         parts = [float(v) for v in value.split(",")]
     except ValueError:
@@ -99,70 +104,190 @@ def relative_name(ctx, param, value):  # noqa: ARG001
 
 
 class MaxPoints(click.ParamType):
-    """--max-points: an integer >= 50, or 'all' (no cap)."""
+    """--max-points: 'all' (no cap), or an integer at least TrackOptions' ``min_points`` (a
+    keyframe with fewer points is refused)."""
 
     name = "N|all"
 
     def convert(self, value, param, ctx):
         if isinstance(value, int):
             return value
-        if str(value).strip().lower() == "all":
-            from monovo_cli.core.odometry import ALL_POINTS
+        from monovo_cli.core.odometry import ALL_POINTS, TrackOptions
 
+        if str(value).strip().lower() == "all":
             return ALL_POINTS
+        least = TrackOptions().min_points
         try:
             n = int(value)
         except ValueError:
-            self.fail(f"expected an integer >= 50 or 'all', got {value!r}", param, ctx)
-        if n < 50:
-            self.fail(f"{n} is smaller than the minimum 50", param, ctx)
+            self.fail(f"expected an integer >= {least} or 'all', got {value!r}", param, ctx)
+        if n < least:
+            self.fail(f"{n} is smaller than the minimum {least}", param, ctx)
         return n
+
+
+# --------------------------------------------------------------------------- library defaults
+
+
+class LibraryDefault(click.Option):
+    """An option whose default is written in the library only.
+
+    Its click default is None, "not given": the command passes on only what was given
+    (see :func:`given`) and the library's own default applies to the rest. Help shows the
+    library's default as ``default_text()`` returns it, looked up only when help is shown
+    (it may import numpy and OpenCV); None shows nothing.
+    """
+
+    def __init__(self, *args, default_text: Callable[[], str | None], **kwargs) -> None:
+        super().__init__(*args, default=None, **kwargs)
+        self.default_text = default_text
+
+    def get_help_extra(self, ctx: click.Context):
+        extra = super().get_help_extra(ctx)
+        text = self.default_text()
+        if text is not None:
+            extra["default"] = text
+        return extra
+
+
+def keyword_default(module: str, function: str, name: str) -> Callable[[], str]:
+    """``default_text`` of :class:`LibraryDefault`: the default of the keyword argument
+    ``name`` of ``module.function``."""
+
+    def text() -> str:
+        fn = getattr(importlib.import_module(module), function)
+        return str(inspect.signature(fn).parameters[name].default)
+
+    return text
+
+
+def given(**values: Any) -> dict[str, Any]:
+    """The keyword arguments that were given (are not None), to pass on to the library."""
+    return {k: v for k, v in values.items() if v is not None}
 
 
 # --------------------------------------------------------------------------- tracking
 
 
-def tracking_options(f):
-    """Options of the sequence loop (track, and batch later)."""
-    f = click.option("--covariance", type=click.Path(path_type=Path), default=None,
-                     help="Write every frame's 6x6 covariance of (tx..rz) (m, rad) to this CSV.")(f)
-    f = click.option("--prior", type=click.Path(path_type=Path), default=None,
-                     help="A motion CSV (e.g. wheel odometry) used as each frame's initial guess.")(f)
-    f = click.option("--max-step", callback=parse_max_step, default=None, metavar="M[,DEG]",
-                     help="Mark a frame lost when its motion exceeds this many metres (and degrees).")(f)
-    f = click.option("--no-photometric", is_flag=True,
-                     help="Do not estimate a per-frame brightness gain and bias.")(f)
-    f = click.option("--mask", type=click.Path(path_type=Path), default=None,
-                     help="PNG of the frame size; its non-zero pixels are never used.")(f)
-    return f
-
-
-def model_options(f):
-    """Options of the ground model and the estimator (init, track, batch)."""
-    f = click.option("--reanchor-fraction", type=click.FloatRange(0.0, 1.0, max_open=True),
-                     default=0.6, show_default=True,
-                     help="Re-anchor when fewer of the keyframe's points than this stay in view.")(f)
-    f = click.option("--robust", type=click.Choice(["huber", "tukey", "none"]), default="huber",
-                     show_default=True, help="M-estimator of the IRLS weights.")(f)
-    f = click.option("--max-points", type=MaxPoints(), default=None, metavar="N|all",
-                     help="Cap on observation points at full resolution (the strongest "
-                          "gradients, spread evenly); 'all': every pixel above the threshold "
-                          "[default: one per 2 pixels].")(f)
-    f = click.option("--threshold", type=click.FloatRange(min=0.0, min_open=True), default=None,
-                     help="delta_1: Sobel magnitude (grey levels/px) an observation point needs "
-                          "[default: 3x the noise's Sobel std, estimated from frame 0].")(f)
-    f = click.option("--levels", type=click.IntRange(1, 8), default=None,
-                     help="Pyramid levels [default: until the image is ~32 px].")(f)
-    return f
-
-
-def track_options(levels, threshold, max_points, robust, reanchor_fraction, *,
-                  photometric=True, max_step=(None, None)):
-    """TrackOptions from the command line's values."""
-    from monovo_cli.core.estimate import EstimatorOptions
+def track_default(field: str) -> Any:
+    """The default of the TrackOptions field ``field`` (dotted: ``estimator.robust``)."""
     from monovo_cli.core.odometry import TrackOptions
 
-    return TrackOptions(levels=levels, threshold=threshold, max_points=max_points,
-                        reanchor_fraction=reanchor_fraction, max_step_m=max_step[0],
-                        max_step_deg=max_step[1],
-                        estimator=EstimatorOptions(robust=robust, photometric=photometric))
+    value = TrackOptions()
+    for part in field.split("."):
+        value = getattr(value, part)
+    return value
+
+
+class TrackOption(LibraryDefault):
+    """An option setting the TrackOptions field ``field`` (dotted for a nested one), or the
+    fields of a tuple ``field`` from a tuple value. Help shows the dataclass default unless
+    ``default_text`` says it in words."""
+
+    def __init__(self, *args, field: str | tuple[str, ...],
+                 default_text: Callable[[], str | None] | None = None, **kwargs) -> None:
+        super().__init__(*args, default_text=default_text or self._dataclass_default, **kwargs)
+        self.field = field
+
+    def _dataclass_default(self) -> str | None:
+        if self.is_flag or isinstance(self.field, tuple):
+            return None
+        value = track_default(self.field)
+        return None if value is None else str(value)
+
+
+def build_track_options(values: dict[str | tuple[str, ...], Any]):
+    """TrackOptions from ``{field: value}`` of :class:`TrackOption` s: the values given (not
+    None), the dataclass defaults for the rest."""
+    from monovo_cli.core.odometry import TrackOptions
+    from monovo_cli.core.options import options_from_dict
+
+    nested: dict[str, Any] = {}
+    for field, value in values.items():
+        if value is None:
+            continue
+        pairs = zip(field, value) if isinstance(field, tuple) else [(field, value)]
+        for name, v in pairs:
+            if v is not None:
+                *parents, leaf = name.split(".")
+                node = nested
+                for parent in parents:
+                    node = node.setdefault(parent, {})
+                node[leaf] = v
+    return options_from_dict(TrackOptions, nested)
+
+
+def _track_option(*decls: str, **attrs: Any):
+    return click.option(*decls, cls=TrackOption, **attrs)
+
+
+_TRACK_OPTIONS = {
+    "levels": _track_option(
+        "--levels", field="levels", type=click.IntRange(1, 8), help="Pyramid levels.",
+        default_text=lambda: "until the image is ~{} px".format(
+            keyword_default("monovo_cli.image.pyramid", "num_levels", "min_size")())),
+    "threshold": _track_option(
+        "--threshold", field="threshold", type=click.FloatRange(min=0.0, min_open=True),
+        help="delta_1: Sobel magnitude (grey levels/px) an observation point needs.",
+        default_text=lambda: "3x the noise's Sobel std, estimated from frame 0"),
+    "max_points": _track_option(
+        "--max-points", field="max_points", type=MaxPoints(), metavar="N|all",
+        help="Cap on observation points at full resolution (the strongest gradients, spread "
+             "evenly); 'all': every pixel above the threshold.",
+        default_text=lambda: f"one per {track_default('pixels_per_point')} pixels"),
+    "robust": _track_option(
+        "--robust", field="estimator.robust", type=click.Choice(["huber", "tukey", "none"]),
+        help="M-estimator of the IRLS weights."),
+    "reanchor_fraction": _track_option(
+        "--reanchor-fraction", field="reanchor_fraction",
+        type=click.FloatRange(0.0, 1.0, max_open=True),
+        help="Re-anchor when fewer of the keyframe's points than this stay in view."),
+    "photometric": _track_option(
+        "--no-photometric", "photometric", field="estimator.photometric", flag_value=False,
+        help="Do not estimate a per-frame brightness gain and bias."),
+    "max_step": _track_option(
+        "--max-step", field=("max_step_m", "max_step_deg"), callback=parse_max_step,
+        metavar="M[,DEG]",
+        help="Mark a frame lost when its motion exceeds this many metres (and degrees)."),
+}
+#: The options of the ground model and the estimator (init).
+MODEL = ("levels", "threshold", "max_points", "robust", "reanchor_fraction")
+#: ... and of the sequence loop (track, batch).
+LOOP = (*MODEL, "photometric", "max_step")
+
+
+def track_options(names: tuple[str, ...]):
+    """The TrackOptions options ``names`` (:data:`MODEL` or :data:`LOOP`) on a command,
+    which receives them as one argument ``options``: a TrackOptions with the values given
+    and the dataclass defaults for the rest, so that no default is written here."""
+
+    def decorate(f):
+        @functools.wraps(f)
+        def command(*args, **kwargs):
+            params = click.get_current_context().command.params
+            values = {p.field: kwargs.pop(p.name) for p in params if isinstance(p, TrackOption)}
+            return f(*args, options=build_track_options(values), **kwargs)
+
+        for name in reversed(names):
+            command = _TRACK_OPTIONS[name](command)
+        return command
+
+    return decorate
+
+
+def side_inputs(*, batch: bool = False):
+    """--mask, --prior and --covariance (track, batch); with ``batch``, --prior and
+    --covariance name a file inside each sequence / output folder."""
+    check = relative_name if batch else None
+
+    def decorate(f):
+        f = click.option("--covariance", type=click.Path(path_type=Path), default=None,
+                         callback=check, help="Write every frame's 6x6 covariance of (tx..rz) "
+                                              "(m, rad) to this CSV.")(f)
+        f = click.option("--prior", type=click.Path(path_type=Path), default=None,
+                         callback=check, help="A motion CSV (e.g. wheel odometry) used as each "
+                                              "frame's initial guess.")(f)
+        return click.option("--mask", type=click.Path(path_type=Path), default=None,
+                            help="PNG of the frame size; its non-zero pixels are never used.")(f)
+
+    return decorate

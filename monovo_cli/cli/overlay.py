@@ -8,7 +8,10 @@ import click
 
 from monovo_cli.cli.group import progress_bar, setup
 from monovo_cli.cli.options import (
+    LibraryDefault,
     common,
+    given,
+    keyword_default,
     output_option,
     overwrite_option,
     params_option,
@@ -30,7 +33,8 @@ from monovo_cli.cli.options import (
 @click.option("--points", is_flag=True,
               help="Also draw the observation points, coloured by intensity residual "
                    "(green: within the noise, red: 3 sqrt(2) sigma and more).")
-@click.option("--fps", type=click.FloatRange(min=0.1, max=240.0), default=10.0, show_default=True)
+@click.option("--fps", type=click.FloatRange(min=0.1, max=240.0), cls=LibraryDefault,
+              default_text=keyword_default("monovo_cli.pipeline.overlay", "overlay_sequence", "fps"))
 @overwrite_option("Replace the output if it exists.")
 @common
 @click.pass_context
@@ -47,6 +51,6 @@ def overlay(ctx, seq, params, trajectory, out, triangle, points, fps, overwrite,
 
     with progress_bar(quiet, "frame") as bar:
         s = overlay_sequence(seq, params, trajectory, out, triangle_px=triangle, points=points,
-                             fps=fps, overwrite=overwrite, progress=bar)
+                             overwrite=overwrite, progress=bar, **given(fps=fps))
     if not quiet:
         click.echo(f"wrote {s.frames} frames to {s.out} in {s.seconds:.1f} s")

@@ -7,19 +7,32 @@ from pathlib import Path
 import click
 
 from monovo_cli.cli.group import progress_bar, setup
-from monovo_cli.cli.options import common, overwrite_option, parse_size
+from monovo_cli.cli.options import (
+    LibraryDefault,
+    common,
+    given,
+    keyword_default,
+    overwrite_option,
+    parse_size,
+)
+
+
+def _default(name: str):
+    return keyword_default("monovo_cli.synth.write", "synthesize", name)
 
 
 @click.command()
 @click.argument("out", type=click.Path(path_type=Path))
-@click.option("--preset", type=click.Choice(["pairs", "drive"]), default="drive", show_default=True)
+@click.option("--preset", type=click.Choice(["pairs", "drive"]), cls=LibraryDefault,
+              default_text=_default("preset"))
 @click.option("--frames", type=click.IntRange(min=1), default=None,
               help="Frames of the drive, or number of pairs [default: 300 / 100].")
 @click.option("--size", callback=parse_size, default=None, metavar="WxH",
               help="Image size [default: 512x512 drive, 688x544 pairs].")
-@click.option("--noise-var", type=click.FloatRange(min=0.0), default=10.0, show_default=True,
+@click.option("--noise-var", type=click.FloatRange(min=0.0), cls=LibraryDefault,
+              default_text=_default("noise_var"),
               help="Variance of the added Gaussian noise (grey levels^2).")
-@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--seed", type=int, cls=LibraryDefault, default_text=_default("seed"))
 @click.option("--texture", type=click.Path(path_type=Path), default=None,
               help="A photo to use as ground texture instead of the procedural one.")
 @click.option("--max-translation", type=click.FloatRange(min=0.0), default=None,
@@ -49,8 +62,9 @@ def synth(ctx, out, preset, frames, size, noise_var, seed, texture, max_translat
         else:
             out.unlink()
     with progress_bar(quiet, "frame") as bar:
-        s = synthesize(out, preset=preset, frames=frames, size=size, noise_var=noise_var,
-                       seed=seed, texture=texture, max_translation=max_translation,
-                       exposure=exposure, clean_frame0=clean_frame0, progress=bar)
+        s = synthesize(out, frames=frames, size=size, texture=texture,
+                       max_translation=max_translation, exposure=exposure,
+                       clean_frame0=clean_frame0, progress=bar,
+                       **given(preset=preset, noise_var=noise_var, seed=seed))
     if not quiet:
         click.echo(f"wrote {s.sequences} sequence(s) of {s.frames_per_sequence} frames to {out}")

@@ -8,15 +8,15 @@ import click
 
 from monovo_cli.cli.group import progress_bar, setup
 from monovo_cli.cli.options import (
+    LOOP,
     common,
-    model_options,
     output_option,
     overwrite_option,
     params_option,
     seq_argument,
+    side_inputs,
     skip_bad_frames_option,
     track_options,
-    tracking_options,
 )
 
 
@@ -30,13 +30,12 @@ from monovo_cli.cli.options import (
 @click.option("--groundtruth", type=click.Path(path_type=Path), default=None, metavar="GT.tum",
               help="A TUM ground truth to draw beside the estimate in trajectory.png.")
 @skip_bad_frames_option("stop with an error, keeping the rows done")
-@tracking_options
-@model_options
+@side_inputs()
+@track_options(LOOP)
 @common
 @click.pass_context
-def track(ctx, seq, params, out, model, overwrite, skip_bad_frames, levels, threshold, max_points,
-          robust, reanchor_fraction, quiet, verbose, groundtruth, mask, no_photometric, max_step,
-          prior, covariance):
+def track(ctx, seq, params, out, model, overwrite, groundtruth, skip_bad_frames, mask, prior,
+          covariance, options, quiet, verbose):
     """Estimate the motion of every frame of SEQ; write motion.csv and the trajectory.
 
     With -o DIR also trajectory.png, the path seen from above on the ground plane.
@@ -46,9 +45,7 @@ def track(ctx, seq, params, out, model, overwrite, skip_bad_frames, levels, thre
 
     to_stdout = out == "-"
     with progress_bar(quiet, "frame") as bar:
-        s = track_sequence(seq, params, None if to_stdout else Path(out),
-                           track_options(levels, threshold, max_points, robust, reanchor_fraction,
-                                         photometric=not no_photometric, max_step=max_step),
+        s = track_sequence(seq, params, None if to_stdout else Path(out), options,
                            groundtruth=groundtruth, mask=mask, prior=prior, covariance=covariance,
                            model=model, overwrite=overwrite, skip_bad_frames=skip_bad_frames,
                            progress=bar)

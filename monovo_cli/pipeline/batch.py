@@ -289,7 +289,10 @@ def run_batch(root: str | Path, out_root: str | Path, options: dict[str, Any] | 
 
     Sequences come from :func:`find_sequences` (``pattern``: a glob). Each is tracked by
     ``task`` (:func:`track_one`, or a function of the same signature) with ``options``
-    (keys of :data:`DEFAULT_OPTIONS`), on a local pool of ``workers`` spawned processes
+    (:class:`~monovo_cli.pipeline.batch_job.JobOptions` or a dict of some of its fields,
+    e.g. ``{"track": dataclasses.asdict(TrackOptions(...)), "skip_bad_frames": True}``;
+    the tasks get it as the complete JSON-able dict of :func:`normalize_options`), on a
+    local pool of ``workers`` spawned processes
     (default: :func:`available_cores`), on a Dask LocalCluster of ``workers`` processes
     (``dask``), or on the Dask scheduler at ``scheduler`` (``tcp://HOST:PORT``; its workers
     must see ``root`` and ``out_root`` at the same paths and have monovo installed).

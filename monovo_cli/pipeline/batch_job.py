@@ -12,14 +12,18 @@ import os
 import socket
 import time
 import traceback
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from monovo_cli import __version__
 from monovo_cli.errors import InputError, MonovoError, OutputError
 
-FRAMES_SUBDIR = "frames"  # as monovo_cli.frames (not imported here: it loads OpenCV)
+if TYPE_CHECKING:
+    from monovo_cli.core.odometry import TrackOptions
+
+FRAMES_SUBDIR = "frames"  # as monovo_cli.io.frames (not imported here: it loads OpenCV)
 INIT_FILE = "init.yaml"
 DONE_FILE = "done.json"
 SUMMARY_FILE = "summary.csv"
@@ -27,29 +31,34 @@ SUMMARY_COLUMNS = ("sequence", "frames", "status", "frames_per_s", "mean_msd", "
                    "reanchored", "distance_m", "seconds")
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                     "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
-DONE_FORMAT = 1
+DONE_FORMAT = 2  # 2: options as dataclasses.asdict(JobOptions), every tracking setting
 
 log = logging.getLogger(__name__)
 
-#: The options of :func:`track_one` and their defaults (those of ``monovo track``).
-#: ``mask``: one PNG for every sequence (absolute path); ``prior``: a motion CSV's path
-#: relative to each sequence folder; ``covariance``: a CSV's path relative to each output
-#: folder. The rest are ``monovo track``'s options of the same names.
-DEFAULT_OPTIONS: dict[str, Any] = {
-    "levels": None,
-    "threshold": None,
-    "max_points": None,
-    "robust": "huber",
-    "reanchor_fraction": 0.6,
-    "photometric": True,
-    "max_step_m": None,
-    "max_step_deg": None,
-    "mask": None,
-    "prior": None,
-    "covariance": None,
-    "skip_bad_frames": False,
-}
 
+def _default_track_options() -> TrackOptions:
+    from monovo_cli.core.odometry import TrackOptions  # loads OpenCV: not at import time
+
+    return TrackOptions()
+
+
+@dataclass(frozen=True)
+class JobOptions:
+    """The options of :func:`track_one`: ``track``, the tracking options (the only place
+    their defaults are written), and what ``monovo batch`` sets per sequence: ``mask``, one
+    PNG for every sequence (an absolute path); ``prior``, a motion CSV's path relative to
+    each sequence folder; ``covariance``, a CSV's path relative to each output folder;
+    ``skip_bad_frames``, as ``monovo track --skip-bad-frames``.
+
+    Travels as ``dataclasses.asdict(JobOptions(...))``, a JSON-able dict, and is written so
+    into ``done.json``; :func:`normalize_options` completes and checks such a dict.
+    """
+
+    track: TrackOptions = field(default_factory=_default_track_options)
+    mask: str | None = None
+    prior: str | None = None
+    covariance: str | None = None
+    skip_bad_frames: bool = False
 
 
 # --------------------------------------------------------------------------- discovery
@@ -139,31 +148,30 @@ def sequence_name(rel: Path) -> str:
 # --------------------------------------------------------------------------- one sequence
 
 
-def normalize_options(options: dict[str, Any] | None) -> dict[str, Any]:
-    """``options`` completed with :data:`DEFAULT_OPTIONS`; paths as strings.
+def job_options(options: Mapping[str, Any] | JobOptions | None) -> JobOptions:
+    """:class:`JobOptions` from ``options``: a dict of some of its fields (``track`` a
+    :class:`~monovo_cli.core.odometry.TrackOptions` or a dict of some of its fields, e.g.
+    ``{"track": {"estimator": {"robust": "tukey"}}}``; paths may be ``Path``), or None for
+    the defaults.
 
     Raises ValueError for a key that is not an option (a programming error, not bad input).
     """
+    if isinstance(options, JobOptions):
+        return options
+    from monovo_cli.core.options import options_from_dict
+
     options = dict(options or {})
-    unknown = sorted(set(options) - set(DEFAULT_OPTIONS))
-    if unknown:
-        raise ValueError(f"unknown option(s) {', '.join(unknown)}; expected some of "
-                         f"{', '.join(DEFAULT_OPTIONS)}")
-    out = {**DEFAULT_OPTIONS, **options}
     for key in ("mask", "prior", "covariance"):
-        if out[key] is not None:
-            out[key] = str(out[key])
-    return out
+        if options.get(key) is not None:
+            options[key] = str(options[key])
+    return options_from_dict(JobOptions, options)
 
 
-def _track_options(o: dict[str, Any]):
-    from monovo_cli.core.estimate import EstimatorOptions
-    from monovo_cli.core.odometry import TrackOptions
-
-    return TrackOptions(levels=o["levels"], threshold=o["threshold"], max_points=o["max_points"],
-                        reanchor_fraction=o["reanchor_fraction"], max_step_m=o["max_step_m"],
-                        max_step_deg=o["max_step_deg"],
-                        estimator=EstimatorOptions(robust=o["robust"], photometric=o["photometric"]))
+def normalize_options(options: Mapping[str, Any] | JobOptions | None) -> dict[str, Any]:
+    """``options`` (see :func:`job_options`) completed with the defaults, as the JSON-able
+    dict ``dataclasses.asdict`` makes of :class:`JobOptions`: what ``done.json`` records and
+    :func:`is_complete` compares."""
+    return asdict(job_options(options))
 
 
 def limit_threads() -> None:
@@ -223,10 +231,10 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: dict[str, Any] 
     for a bad sequence.
 
     ``seq_dir``: a sequence folder (``frames/`` and ``init.yaml``) or a directory of frames
-    with ``init.yaml`` beside them. ``options``: keys of :data:`DEFAULT_OPTIONS` (unknown
-    keys raise ValueError). ``overwrite``: replace results already in ``out_dir`` (else such
-    a folder is an error). ``single_thread``: run OpenCV on one thread (see
-    :func:`limit_threads`).
+    with ``init.yaml`` beside them. ``options``: :class:`JobOptions` or a dict of some of its
+    fields (see :func:`job_options`; unknown keys raise ValueError). ``overwrite``: replace
+    results already in ``out_dir`` (else such a folder is an error). ``single_thread``: run
+    OpenCV on one thread (see :func:`limit_threads`).
 
     Writes motion.csv, trajectory.csv, trajectory.tum and trajectory.png, then, last,
     ``done.json`` (what :func:`is_complete` checks). Returns a JSON-able dict: ``status``
@@ -236,7 +244,7 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: dict[str, Any] 
     else; ``traceback`` holds the details). KeyboardInterrupt and other BaseExceptions
     propagate.
     """
-    opts = normalize_options(options)
+    job = job_options(options)
     seq_dir, out_dir = Path(seq_dir), Path(out_dir)
     t0 = time.perf_counter()
     try:
@@ -251,12 +259,12 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: dict[str, Any] 
                                   "overwrite (--overwrite / --resume) or another output folder")
             done.unlink()
         summary = track_sequence(
-            seq_dir, None, out_dir, _track_options(opts), overwrite=overwrite,
-            skip_bad_frames=opts["skip_bad_frames"],
-            mask=Path(opts["mask"]) if opts["mask"] else None,
-            prior=seq_dir / opts["prior"] if opts["prior"] else None,
-            covariance=out_dir / opts["covariance"] if opts["covariance"] else None)
-        n_frames, fingerprint = _input_fingerprint(seq_dir, opts["prior"])
+            seq_dir, None, out_dir, job.track, overwrite=overwrite,
+            skip_bad_frames=job.skip_bad_frames,
+            mask=Path(job.mask) if job.mask else None,
+            prior=seq_dir / job.prior if job.prior else None,
+            covariance=out_dir / job.covariance if job.covariance else None)
+        n_frames, fingerprint = _input_fingerprint(seq_dir, job.prior)
         rows = {"motion.csv": (_count_rows(out_dir / "motion.csv", True), n_frames - 1),
                 "trajectory.csv": (_count_rows(out_dir / "trajectory.csv", True), n_frames),
                 "trajectory.tum": (_count_rows(out_dir / "trajectory.tum", False), n_frames)}
@@ -264,14 +272,14 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: dict[str, Any] 
             if got != expected:
                 raise RuntimeError(f"{out_dir / name}: {got} rows after tracking, expected "
                                    f"{expected} for {n_frames} frames")
-        names = list(RESULT_FILES) + ([opts["covariance"]] if opts["covariance"] else [])
+        names = list(RESULT_FILES) + ([job.covariance] if job.covariance else [])
         files = {n: {"bytes": (out_dir / n).stat().st_size, "sha256": _sha256(out_dir / n)}
                  for n in names if (out_dir / n).is_file()}
         stats = {"frames": summary.frames, "fps": summary.fps, "mean_msd": summary.mean_msd,
                  "lost": summary.lost, "reanchored": summary.reanchored,
                  "distance_m": summary.distance_m, "seconds": summary.seconds}
         marker = {"format": DONE_FORMAT, "monovo": __version__, "frames": n_frames,
-                  "inputs_sha256": fingerprint, "options": opts, "result": stats, "files": files}
+                  "inputs_sha256": fingerprint, "options": asdict(job), "result": stats, "files": files}
         from monovo_cli.io.atomic import atomic_write_text
 
         atomic_write_text(done, json.dumps(marker, indent=1, sort_keys=True) + "\n")
@@ -300,7 +308,7 @@ def is_complete(seq_dir: str | Path, out_dir: str | Path,
     saying what is missing or different.
     """
     seq_dir, out_dir = Path(seq_dir), Path(out_dir)
-    opts = normalize_options(options)
+    job = job_options(options)
     done = out_dir / DONE_FILE
     if not done.is_file():
         return False, f"no {DONE_FILE}"
@@ -308,9 +316,9 @@ def is_complete(seq_dir: str | Path, out_dir: str | Path,
         marker = json.loads(done.read_text())
         if marker.get("format") != DONE_FORMAT:
             return False, f"{DONE_FILE} of another format ({marker.get('format')!r})"
-        if marker.get("options") != opts:
+        if marker.get("options") != asdict(job):
             return False, "tracked with other options"
-        n_frames, fingerprint = _input_fingerprint(seq_dir, opts["prior"])
+        n_frames, fingerprint = _input_fingerprint(seq_dir, job.prior)
         if (marker.get("frames"), marker.get("inputs_sha256")) != (n_frames, fingerprint):
             return False, "the sequence's frames, init.yaml, times.txt or prior changed"
         for name, want in marker["files"].items():

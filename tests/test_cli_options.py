@@ -1,0 +1,134 @@
+"""The CLI's options: TrackOptions is their only source of defaults; batch ships them as a dict.
+
+The library calls are replaced by fakes that record what the commands pass, so these tests
+check the command line itself and run in well under a second.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+import json
+from pathlib import Path
+from types import SimpleNamespace
+
+import click
+import pytest
+from click.testing import CliRunner
+
+import monovo_cli.core.odometry as odometry
+import monovo_cli.pipeline.batch as batch
+import monovo_cli.pipeline.track as track
+from monovo_cli.cli import main
+from monovo_cli.core.estimate import EstimatorOptions
+from monovo_cli.core.odometry import ALL_POINTS, TrackOptions
+from monovo_cli.core.options import options_from_dict
+from monovo_cli.pipeline.batch_job import job_options, normalize_options
+
+ALL_GIVEN = ["--levels", "3", "--threshold", "5", "--max-points", "all", "--robust", "tukey",
+             "--reanchor-fraction", "0.5", "--no-photometric", "--max-step", "0.5,10"]
+ALL_GIVEN_OPTIONS = TrackOptions(levels=3, threshold=5.0, max_points=ALL_POINTS,
+                                 reanchor_fraction=0.5, max_step_m=0.5, max_step_deg=10.0,
+                                 estimator=EstimatorOptions(robust="tukey", photometric=False))
+
+
+@pytest.fixture
+def calls(monkeypatch):
+    """Fakes of the library calls of init, track and batch; each records its arguments."""
+    seen: dict[str, tuple] = {}
+
+    def fake_track(seq, params, out_dir, options, **kw):
+        seen["track"] = (options, kw)
+        return SimpleNamespace()  # with -q the command prints nothing of it
+
+    def fake_init(seq, params, out, options):
+        seen["init"] = (options, {})
+        raise click.exceptions.Exit(0)  # the command would print the model's levels
+
+    def fake_batch(root, out, options, **kw):
+        seen["batch"] = (options, kw)
+        return batch.BatchSummary([], 0.1, Path(out) / "summary.csv", "local", 1)
+
+    monkeypatch.setattr(track, "track_sequence", fake_track)
+    monkeypatch.setattr(track, "init_model", fake_init)
+    monkeypatch.setattr(batch, "run_batch", fake_batch)
+    return seen
+
+
+def _run(*args: str) -> None:
+    r = CliRunner().invoke(main, [*args, "-q"])
+    assert r.exit_code == 0, r.output
+
+
+def test_unset_tracking_options_are_exactly_the_dataclass_defaults(calls, tmp_path):
+    _run("track", "seq", "-o", str(tmp_path / "o"))
+    _run("init", "seq", "-o", str(tmp_path / "m.npz"))
+    _run("batch", "root", "-o", str(tmp_path / "b"))
+    assert calls["track"][0] == TrackOptions()
+    assert calls["init"][0] == TrackOptions()
+    job = calls["batch"][0]
+    assert job["track"] == dataclasses.asdict(TrackOptions())
+    assert job_options(job) == job_options(None)
+    assert {k: job[k] for k in ("mask", "prior", "covariance", "skip_bad_frames")} == {
+        "mask": None, "prior": None, "covariance": None, "skip_bad_frames": False}
+
+
+def test_given_tracking_options_set_their_fields_and_only_those(calls, tmp_path):
+    _run("track", "seq", "-o", str(tmp_path / "o"), *ALL_GIVEN)
+    assert calls["track"][0] == ALL_GIVEN_OPTIONS
+    _run("batch", "root", "-o", str(tmp_path / "b"), *ALL_GIVEN, "--prior", "wheel.csv")
+    job = calls["batch"][0]
+    assert options_from_dict(TrackOptions, job["track"]) == ALL_GIVEN_OPTIONS
+    assert job["prior"] == Path("wheel.csv")
+    # --max-step without degrees leaves max_step_deg at its default
+    _run("track", "seq", "-o", str(tmp_path / "o2"), "--max-step", "0.25")
+    assert calls["track"][0] == dataclasses.replace(TrackOptions(), max_step_m=0.25)
+    # init takes the ground model's options only
+    r = CliRunner().invoke(main, ["init", "seq", "-o", str(tmp_path / "m"), "--no-photometric"])
+    assert r.exit_code == 2 and "no such option" in r.output.lower() and "--no-photometric" in r.output
+
+
+def test_no_option_restates_a_library_default():
+    """Every option that is not a flag defaults to None ("not given"), so the library's
+    default applies; flags default to their absence."""
+    for name, command in main.commands.items():
+        for p in command.params:
+            if isinstance(p, click.Option) and not p.is_flag and not p.required:
+                assert p.default is None, f"monovo {name} {p.opts[0]}: default {p.default!r}"
+
+
+def test_help_reads_the_defaults_from_the_library(monkeypatch):
+    r = CliRunner().invoke(main, ["track", "--help"], terminal_width=200)
+    assert r.exit_code == 0
+    d = TrackOptions()
+    assert f"[default: {d.estimator.robust}]" in r.output
+    assert f"[default: {d.reanchor_fraction}; 0.0<=x<1.0]" in r.output
+    assert f"[default: one per {d.pixels_per_point} pixels]" in r.output
+
+    @dataclasses.dataclass(frozen=True)
+    class Changed(TrackOptions):
+        reanchor_fraction: float = 0.45
+        pixels_per_point: int = 3
+
+    monkeypatch.setattr(odometry, "TrackOptions", Changed)
+    r = CliRunner().invoke(main, ["batch", "--help"], terminal_width=200)
+    assert "[default: 0.45; 0.0<=x<1.0]" in r.output and "one per 3 pixels" in r.output
+
+    from monovo_cli.synth.write import synthesize
+
+    r = CliRunner().invoke(main, ["synth", "--help"], terminal_width=200)
+    noise_var = inspect.signature(synthesize).parameters["noise_var"].default
+    assert f"Variance of the added Gaussian noise (grey levels^2).  [default: {noise_var};" in r.output
+
+
+def test_batch_options_survive_json_and_are_checked():
+    opts = normalize_options({"track": ALL_GIVEN_OPTIONS, "mask": Path("/m.png")})
+    back = json.loads(json.dumps(opts))
+    assert back == opts  # what done.json holds compares equal to what a rerun asks for
+    assert job_options(back).track == ALL_GIVEN_OPTIONS and job_options(back).mask == "/m.png"
+    assert normalize_options({"track": {"estimator": {"robust": "none"}}})["track"] == (
+        dataclasses.asdict(TrackOptions(estimator=EstimatorOptions(robust="none"))))
+    with pytest.raises(ValueError, match="unknown option.*robustt of EstimatorOptions"):
+        normalize_options({"track": {"estimator": {"robustt": "none"}}})
+    with pytest.raises(ValueError, match="unknown option.*robust of JobOptions"):
+        normalize_options({"robust": "none"})
