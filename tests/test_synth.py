@@ -314,7 +314,8 @@ def test_drive_init_yaml(drive_dir):
     init = yaml.safe_load(text)
     assert list(init) == ["camera", "ground"]
     cam = init["camera"]
-    assert list(cam) == ["width", "height", "fx", "fy", "cx", "cy"]
+    assert list(cam) == ["width", "height", "fx", "fy", "cx", "cy", "distortion"]
+    assert cam["distortion"] == [0.0] * 5  # written by io.config.dump_init: no lens distortion
     assert (cam["width"], cam["height"]) == SMALL
     assert all(isinstance(cam[k], int) for k in ("width", "height"))
     assert all(isinstance(cam[k], float) for k in ("fx", "fy", "cx", "cy"))

@@ -76,31 +76,39 @@ class EstimatorOptions:
     #                                  or "lanczos4" (image.sampling.INTERPOLATION)
 
 
-def observation_matrix(X: np.ndarray, grad: np.ndarray, fx: float, fy: float,
-                       distortion_jacobian: np.ndarray | None = None) -> np.ndarray:
-    """The rows o_i (N, 6) of the observation matrix O at points ``X`` (N, 3) with gradients (N, 2).
+def observation_rows(X: np.ndarray, gx: np.ndarray, gy: np.ndarray, fx: float, fy: float,
+                     distortion_jacobian: np.ndarray | None = None,
+                     inverse_depth: np.ndarray | None = None) -> np.ndarray:
+    """The observation rows o_i as columns (6, N): d(intensity)/d(twist) at points ``X`` (N, 3).
 
-    Derivative of the intensity at the projection of ``exp(xi^) X`` with respect to the twist
-    ``xi = (v, w)`` at 0, grey levels per metre / per radian. ``distortion_jacobian`` (N, 2, 2)
-    is d(pixel)/d(normalised coordinates) of a distorted camera; without it the camera is a
-    pinhole, d(pixel)/d(normalised) = diag(fx, fy).
+    The derivative of the intensity at the projection of ``exp(xi^) X`` with respect to the
+    twist ``xi = (v, w)`` at 0 (grey levels per metre / per radian), for image gradients
+    ``gx``, ``gy`` (N,) in grey levels per pixel at the projections. ``distortion_jacobian``
+    (N, 2, 2) is d(pixel)/d(normalised coordinates) of a distorted camera; without it the
+    camera is a pinhole, d(pixel)/d(normalised) = diag(fx, fy). ``inverse_depth`` (N,) is
+    1 / Z (default), or 0 where a caller masks points behind the camera. Rows 0..2 are the
+    vector ``a`` of the module docstring.
     """
-    X = np.asarray(X, dtype=np.float64)
     x, y, z = X[:, 0], X[:, 1], X[:, 2]
-    g = grad.astype(np.float64)
     if distortion_jacobian is None:
-        gx = g[:, 0] * fx
-        gy = g[:, 1] * fy
+        gx, gy = gx * fx, gy * fy
     else:
         D = distortion_jacobian
-        gx = g[:, 0] * D[:, 0, 0] + g[:, 1] * D[:, 1, 0]
-        gy = g[:, 0] * D[:, 0, 1] + g[:, 1] * D[:, 1, 1]
-    iz = 1.0 / z
+        gx, gy = gx * D[:, 0, 0] + gy * D[:, 1, 0], gx * D[:, 0, 1] + gy * D[:, 1, 1]
+    iz = 1.0 / z if inverse_depth is None else inverse_depth
     a1 = gx * iz
     a2 = gy * iz
     a3 = -(a1 * x + a2 * y) * iz
-    # Built as (6, N) (contiguous rows: KeyLevel stores it transposed) and returned as a view.
-    return np.stack([a1, a2, a3, a3 * y - a2 * z, a1 * z - a3 * x, a2 * x - a1 * y]).T
+    return np.stack([a1, a2, a3, a3 * y - a2 * z, a1 * z - a3 * x, a2 * x - a1 * y])
+
+
+def observation_matrix(X: np.ndarray, grad: np.ndarray, fx: float, fy: float,
+                       distortion_jacobian: np.ndarray | None = None) -> np.ndarray:
+    """The rows o_i (N, 6) of the observation matrix O at points ``X`` (N, 3) with gradients
+    ``grad`` (N, 2) (grey levels per px), a view of :func:`observation_rows`' (6, N)."""
+    g = grad.astype(np.float64)
+    return observation_rows(np.asarray(X, dtype=np.float64), g[:, 0], g[:, 1], fx, fy,
+                            distortion_jacobian).T
 
 
 def distortion_jacobian(camera, X: np.ndarray, eps: float = 1e-6) -> np.ndarray:
@@ -401,12 +409,17 @@ def _msd(r: np.ndarray, n_valid: int) -> float:
     return float(np.dot(r, r)) / n_valid if n_valid else float("inf")
 
 
+def inlier_bound(noise_sigma: float) -> float:
+    """The largest intensity difference (grey levels) of an inlier: ``3 sqrt(2) sigma`` (the
+    difference of two images with noise ``sigma`` each), sigma at least one grey level."""
+    return 3.0 * np.sqrt(2.0) * max(noise_sigma, 1.0)
+
+
 def inlier_fraction(r: np.ndarray, valid: np.ndarray, noise_sigma: float) -> float:
-    """Share of all points that are in view with ``|r| < 3 sqrt(2) sigma`` (both images noisy)."""
+    """Share of all points that are in view with ``|r| <`` :func:`inlier_bound`."""
     if len(r) == 0:
         return 0.0
-    thr = 3.0 * np.sqrt(2.0) * max(noise_sigma, 1.0)
-    return float(np.count_nonzero(valid & (np.abs(r) < thr)) / len(r))
+    return float(np.count_nonzero(valid & (np.abs(r) < inlier_bound(noise_sigma))) / len(r))
 
 
 def coarse_search(level: KeyLevel, image: np.ndarray, cur_from_key: np.ndarray, *,

@@ -441,13 +441,17 @@ class Odometry:
         return True
 
 
-def track(frames: Iterable[tuple[int, float, np.ndarray]], camera: PinholeCamera, plane: Plane,
-          region: tuple[int, int, int, int], options: TrackOptions | None = None, *,
-          mask: np.ndarray | None = None, first_keyframe: Keyframe | None = None,
+def track(frames: Iterable[tuple[int, float, np.ndarray | None]], camera: PinholeCamera,
+          plane: Plane, region: tuple[int, int, int, int], options: TrackOptions | None = None,
+          *, mask: np.ndarray | None = None, first_keyframe: Keyframe | None = None,
           priors: Mapping[int, np.ndarray] | None = None) -> Iterator[FrameResult]:
-    """Yield a :class:`FrameResult` per ``(index, timestamp, image)``, frame 0 first.
+    """Yield a :class:`FrameResult` per ``(index, timestamp, image)``, frame 0 first: the one
+    driver of :class:`Odometry` (``monovo track`` runs it too).
 
-    ``priors`` maps a frame index to its prior motion T_{k-1}_k (4x4).
+    ``image`` (H, W) float32, or None for a frame that could not be read (recorded lost at
+    the prediction); frame 0 must have one (it carries the ground model unless
+    ``first_keyframe`` is given). ``priors`` maps a frame index to its prior motion
+    T_{k-1}_k (4x4).
     """
     odo = Odometry(camera, plane, region, options, mask=mask, first_keyframe=first_keyframe)
     it = iter(frames)
@@ -457,4 +461,7 @@ def track(frames: Iterable[tuple[int, float, np.ndarray]], camera: PinholeCamera
         return
     yield odo.start(index, ts, image)
     for index, ts, image in it:
-        yield odo.step(index, ts, image, None if priors is None else priors.get(index))
+        if image is None:
+            yield odo.skip(index, ts)
+        else:
+            yield odo.step(index, ts, image, None if priors is None else priors.get(index))

@@ -19,7 +19,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monovo_cli.core.estimate import EstimatorOptions, distortion_jacobian, project_in_front, robust_weights
+from monovo_cli.core.estimate import (
+    EstimatorOptions,
+    distortion_jacobian,
+    observation_rows,
+    project_in_front,
+    robust_weights,
+)
 from monovo_cli.core.ground import LevelPoints
 from monovo_cli.geometry.lie import se3_exp
 from monovo_cli.geometry.plane import Plane
@@ -85,23 +91,16 @@ def refine_plane_and_motion(points: LevelPoints, image: np.ndarray, cur_from_key
         if np.count_nonzero(valid) < max(opts.min_valid_points, 50):
             break
         r = vals.astype(np.float64) - (gain * I_key + bias)
-        # a = grad^T d(u,v)/dXc (N, 3)
+        D = None
         if cam.has_distortion:
             D = distortion_jacobian(cam, np.where(front[:, None], Xc, np.array([0.0, 0.0, 1.0])))
-            gx, gy = gx * D[:, 0, 0] + gy * D[:, 1, 0], gx * D[:, 0, 1] + gy * D[:, 1, 1]
-        else:
-            gx, gy = gx * cam.fx, gy * cam.fy
-        a1 = gx * iz
-        a2 = gy * iz
-        a3 = -(a1 * Xc[:, 0] + a2 * Xc[:, 1]) * iz
         e1, e2 = _tangent_basis(n)
-        # Columns: d r / d(left twist of T) = (a, Xc x a); d r / d(normal along e1, e2)
-        # = (a^T R X) * (-(X . e) / d); then the brightness model (-I_key, -1).
+        # Columns: d r / d(left twist of T) = the observation rows (a, Xc x a) at the current
+        # points; d r / d(normal along e1, e2) = (a^T R X) * (-(X . e) / d); then the
+        # brightness model (-I_key, -1).
         J = np.empty((len(r), 10))
-        J[:, 0], J[:, 1], J[:, 2] = a1, a2, a3
-        J[:, 3] = Xc[:, 1] * a3 - Xc[:, 2] * a2
-        J[:, 4] = Xc[:, 2] * a1 - Xc[:, 0] * a3
-        J[:, 5] = Xc[:, 0] * a2 - Xc[:, 1] * a1
+        J[:, :6] = observation_rows(Xc, gx, gy, cam.fx, cam.fy, D, inverse_depth=iz).T
+        a1, a2, a3 = J[:, 0], J[:, 1], J[:, 2]
         aRX = a1 * (Xc[:, 0] - t[0]) + a2 * (Xc[:, 1] - t[1]) + a3 * (Xc[:, 2] - t[2])
         aRX /= -d
         J[:, 6] = aRX * (X @ e1)

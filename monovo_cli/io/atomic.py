@@ -10,11 +10,12 @@ from pathlib import Path
 from monovo_cli.errors import OutputError
 
 
-def _file_mode() -> int:
-    """The mode a plain ``open()`` would give a new file (0666 less the umask); mkstemp uses 0600."""
+def created_mode(directory: bool = False) -> int:
+    """The mode a plain create would give a new file (0666) or directory (0777) less the
+    umask: what a temporary one (mkstemp 0600, mkdtemp 0700) gets before its rename."""
     mask = os.umask(0)
     os.umask(mask)
-    return 0o666 & ~mask
+    return (0o777 if directory else 0o666) & ~mask
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
@@ -26,7 +27,7 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
     path = Path(path)
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-        os.fchmod(fd, _file_mode())
+        os.fchmod(fd, created_mode())
     except OSError as exc:
         raise OutputError(f"{path.parent}: cannot write here ({exc.strerror})") from None
     try:

@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 
 from monovo_cli.errors import InputError, OutputError
+from monovo_cli.io.atomic import atomic_write_bytes, created_mode
 
 VIDEO_EXTENSIONS = (".mp4", ".gif")
 # Browser-safe H.264: 4:2:0 chroma, moov atom first; crf 20 is visually lossless here.
@@ -55,13 +56,6 @@ def pad_to_even(image: np.ndarray) -> np.ndarray:
     if not (ph or pw):
         return image
     return cv2.copyMakeBorder(image, 0, ph, 0, pw, cv2.BORDER_CONSTANT, value=(0, 0, 0))
-
-
-def _public_mode(path: Path, directory: bool) -> None:
-    """Give a temporary file (0600) or directory (0700) the mode a plain create would get."""
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(path, (0o777 if directory else 0o666) & ~umask)
 
 
 def _check_target(path: Path, overwrite: bool) -> None:
@@ -154,7 +148,7 @@ class FrameSink:
                 self.path.unlink()
         elif self.path.is_dir():  # an empty directory given as the target
             self.path.rmdir()
-        _public_mode(self._tmp, self.kind == "png")
+        os.chmod(self._tmp, created_mode(directory=self.kind == "png"))
         os.replace(self._tmp, self.path)
 
     def abort(self) -> None:
@@ -190,8 +184,6 @@ def open_sink(out: str | Path, *, fps: float = 10.0, overwrite: bool = False) ->
 
 def write_png_atomic(path: Path, image: np.ndarray) -> None:
     """Write ``image`` (H, W[, 3]) uint8 as a PNG through a temporary file + rename."""
-    from monovo_cli.io.atomic import atomic_write_bytes
-
     path = Path(path)
     ok, buf = cv2.imencode(".png", image)
     if not ok:

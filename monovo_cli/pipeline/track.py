@@ -11,6 +11,7 @@ exactly the frames done.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import logging
 import signal
 import sys
@@ -22,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from monovo_cli.core.odometry import FrameResult, Keyframe, Odometry, TrackOptions, build_keyframe
+from monovo_cli.core.odometry import FrameResult, Keyframe, TrackOptions, build_keyframe, track
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import InputError, OutputError, TrackingError
 from monovo_cli.geometry.plane import Plane
@@ -203,29 +204,13 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     try:
         writer = MotionWriter(stream, with_std=True)
         cov_writer = CovarianceWriter(_open_output(Path(covariance))) if covariance else None
-        odo = Odometry(cfg.camera, cfg.plane, cfg.region, options,
-                       first_keyframe=first_key, mask=usable)
+        tracked = track(_read_frames(frames, skip_bad_frames, out_dir), cfg.camera, cfg.plane,
+                        cfg.region, options, mask=usable, first_keyframe=first_key, priors=priors)
+        with _naming(frames.paths[0]):  # frame 0 builds the ground model
+            first = next(tracked)
         prev = None
         dist = 0.0
-        for index in range(len(frames)):
-            try:
-                frame = frames.read(index)
-            except InputError as exc:
-                if index == 0 or not skip_bad_frames:
-                    kept = (f"the rows of frames 1..{index - 1} went to stdout" if out_dir is None
-                            else f"frames 0..{index - 1} are kept in {out_dir}")
-                    raise InputError(f"{exc}; tracking stopped at frame {index} ({kept}); replace "
-                                     "the file, or use --skip-bad-frames to record bad frames as "
-                                     "lost and go on") from None
-                log.warning("%s; recorded as lost (--skip-bad-frames)", exc)
-                res = odo.skip(index, float(frames.timestamps[index]))
-            else:
-                if index == 0:
-                    with _naming(frame.path):
-                        res = odo.start(frame.index, frame.timestamp, frame.image)
-                else:
-                    res = odo.step(frame.index, frame.timestamp, frame.image,
-                                   priors.get(frame.index))
+        for res in itertools.chain([first], tracked):
             with _signals_held():
                 results.append((res.index, res.timestamp, res.world_from_cam))
                 if res.index > 0:
@@ -253,6 +238,29 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
         _write_trajectory_plot(Path(out_dir), cfg.plane, results, gt_poses)
     return TrackSummary(len(results), float(np.mean(msds)) if msds else 0.0, seconds, lost,
                         reanchored, dist, Path(out_dir) if out_dir is not None else None)
+
+
+def _read_frames(frames: FrameSequence, skip_bad_frames: bool,
+                 out_dir: Path | None) -> Iterator[tuple[int, float, np.ndarray | None]]:
+    """``(index, timestamp, image)`` of every frame for :func:`~monovo_cli.core.odometry.track`.
+
+    A frame that cannot be read stops the run with an InputError, or with ``skip_bad_frames``
+    (after frame 0) comes as ``image`` None, which the tracker records as lost.
+    """
+    for index in range(len(frames)):
+        try:
+            frame = frames.read(index)
+        except InputError as exc:
+            if index == 0 or not skip_bad_frames:
+                kept = (f"the rows of frames 1..{index - 1} went to stdout" if out_dir is None
+                        else f"frames 0..{index - 1} are kept in {out_dir}")
+                raise InputError(f"{exc}; tracking stopped at frame {index} ({kept}); replace "
+                                 "the file, or use --skip-bad-frames to record bad frames as "
+                                 "lost and go on") from None
+            log.warning("%s; recorded as lost (--skip-bad-frames)", exc)
+            yield index, float(frames.timestamps[index]), None
+        else:
+            yield frame.index, frame.timestamp, frame.image
 
 
 def _read_mask(path: Path, cfg: InitConfig) -> np.ndarray:

@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 
 from monovo_cli.errors import InputError
+from monovo_cli.io.frames import read_gray
 
 TEXTURE_MEAN = 120.0
 TEXTURE_STD = 45.0
@@ -157,26 +158,16 @@ def procedural_texture_size(width: int, height: int) -> int:
 
 
 def load_texture(path: Path) -> np.ndarray:
-    """A user's image as a periodic grey float32 texture: resized to multiples of 32 px per
-    side and mirrored (image | flipped) both ways, so it tiles seamlessly."""
+    """A user's image as a periodic grey float32 texture: decoded as frames are
+    (:func:`~monovo_cli.io.frames.read_gray`: grey levels 0..255 whatever the depth or colour),
+    resized to multiples of 32 px per side and mirrored (image | flipped) both ways, so it
+    tiles seamlessly."""
     path = Path(path)
     try:
-        data = np.fromfile(str(path), dtype=np.uint8)
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read texture ({exc.strerror or exc})") from None
-    img = cv2.imdecode(data, cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR) if data.size else None
-    if img is None:
-        raise InputError(f"{path}: cannot read texture (not an image format OpenCV can decode)")
-    if img.ndim == 3:
-        code = cv2.COLOR_BGRA2GRAY if img.shape[2] == 4 else cv2.COLOR_BGR2GRAY
-        img = cv2.cvtColor(img, code)
-    if img.dtype == np.uint16:
-        img = img.astype(np.float32) / 257.0
-    elif img.dtype != np.uint8:
-        img = img.astype(np.float32)
-        lo, hi = float(img.min()), float(img.max())
-        img = (img - lo) * (255.0 / (hi - lo)) if hi > lo else np.zeros_like(img)
-    img = img.astype(np.float32)
+        img = read_gray(path)
+    except InputError as exc:
+        detail = str(exc).removeprefix(f"{path}: ")
+        raise InputError(f"{path}: cannot read texture ({detail})") from None
     h, w = img.shape
     if min(h, w) < 16:
         raise InputError(f"{path}: texture is {w}x{h} px, need at least 16x16")

@@ -45,7 +45,9 @@ from monovo_cli import __version__
 from monovo_cli.errors import InputError, OutputError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import make_pose, se3_inv
+from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.atomic import atomic_write_text
+from monovo_cli.io.config import dump_init
 from monovo_cli.io.formats import FrameStatus, MotionRow, fmt, motion_csv_text, tum_text
 from monovo_cli.synth.motion import (
     DRIVE_MAST_HEIGHT,
@@ -100,17 +102,6 @@ class SynthSummary:
 # --------------------------------------------------------------------------- outputs
 
 
-def _init_yaml(cam: PinholeCamera, g_from_cam0: np.ndarray, region: list[int]) -> str:
-    n, d = ground_in_camera(g_from_cam0)
-    data = {
-        "camera": {"width": int(cam.width), "height": int(cam.height), "fx": float(cam.fx),
-                   "fy": float(cam.fy), "cx": float(cam.cx), "cy": float(cam.cy)},
-        "ground": {"normal": [float(v) + 0.0 for v in n], "distance": float(d),
-                   "region": [int(v) for v in region]},
-    }
-    return yaml.safe_dump(data, default_flow_style=None, sort_keys=False)
-
-
 def _write_sequence(seq_dir: Path, cam: PinholeCamera, poses: list[np.ndarray],
                     region: list[int], params: dict,
                     photometric: list[tuple[float, float]] | None) -> None:
@@ -120,7 +111,8 @@ def _write_sequence(seq_dir: Path, cam: PinholeCamera, poses: list[np.ndarray],
     traj = [np.eye(4)] + [inv0 @ g for g in poses[1:]]
     rows = [MotionRow(frame=k, prev_from_cur=se3_inv(poses[k - 1]) @ poses[k], msd=0.0,
                       iterations=0, points=0, status=FrameStatus.OK) for k in range(1, len(poses))]
-    atomic_write_text(seq_dir / "init.yaml", _init_yaml(cam, poses[0], region))
+    n, d = ground_in_camera(poses[0])
+    dump_init(seq_dir / "init.yaml", cam, Plane(n + 0.0, d), tuple(region))  # (+ 0.0: no -0.0)
     atomic_write_text(seq_dir / "groundtruth.tum", tum_text([float(k) for k in range(len(poses))],
                                                             traj))
     atomic_write_text(seq_dir / "groundtruth_motion.csv", motion_csv_text(rows))

@@ -29,6 +29,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from monovo_cli.core.estimate import inlier_bound
 from monovo_cli.core.ground import default_threshold, rectangle_corners, select_points
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import InputError
@@ -280,7 +281,7 @@ def anchor_points(image: np.ndarray, camera: PinholeCamera, plane_key: Plane,
     corners = rectangle_corners(camera, plane_key, region)
     pts = select_points(image, camera, plane_key, corners, level=0,
                         threshold=default_threshold(sigma), max_points=max_points)
-    bound = 3.0 * np.sqrt(2.0) * max(sigma, 1.0)
+    bound = inlier_bound(sigma)
     return AnchorPoints(np.array(world_from_key, dtype=float), pts.X,
                         pts.intensity.astype(np.float64), bound)
 
