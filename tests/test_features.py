@@ -132,13 +132,22 @@ def test_mer_spacing_motions_are_recovered(scene, name, g1, tol_m, tol_deg):
     assert np.abs(h[:, :2] / h[:, 2:] - truth[seen]).max() < 5.0
 
 
-def test_cheap_mode_is_close_enough_for_the_direct_search(scene):
+@pytest.mark.parametrize("options", [CHEAP, FeatureOptions(level=1, features=1000)])
+def test_cheap_modes_are_close_enough_for_the_direct_search(scene, options):
+    """Fewer features, or detected at half resolution (keypoints scaled back to full)."""
     cam, renderer, g0, img0, plane = scene
     g1 = forward(0.75)
-    fm = feature_motion(img0, noisy(renderer.render(g1), 1), cam, plane, options=CHEAP)
+    fm = feature_motion(img0, noisy(renderer.render(g1), 1), cam, plane, options=options)
     assert fm is not None
     dt, dr = errors(fm.cur_from_key, se3_inv(g1) @ g0)
     assert dt < 0.05 and dr < 1.0
+
+
+def test_cheap_level_keeps_the_shorter_side_near_256_px():
+    levels = [CHEAP.level_for(PinholeCamera(w, h, 100.0, 100.0, w / 2, h / 2))
+              for w, h in ((256, 256), (384, 384), (512, 512), (1024, 1024), (1241, 376), (2048, 600))]
+    assert levels == [0, 0, 1, 2, 0, 1]
+    assert FeatureOptions().level_for(PinholeCamera(1024, 1024, 1.0, 1.0, 0.0, 0.0)) == 0
 
 
 def test_standing_start_gives_no_motion(scene):
@@ -235,9 +244,9 @@ def test_features_come_only_from_usable_ground(scene):
     cam, _, _, img0, plane = scene
     usable = np.ones((SIZE, SIZE), bool)
     usable[:, : SIZE // 2] = False
-    for opt in (FeatureOptions(), CHEAP):
+    for opt in (FeatureOptions(), FeatureOptions(level=1)):
         f = detect_features(img0, cam, options=opt,
-                            mask=ground_mask(cam, plane, level=opt.level, usable=usable,
+                            mask=ground_mask(cam, plane, level=opt.level_for(cam), usable=usable,
                                              region=(0, 100, SIZE, SIZE)))
         assert len(f) > 100
         assert f.uv[:, 0].min() >= SIZE // 2 - 1 and f.uv[:, 1].min() >= 99

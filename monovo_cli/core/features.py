@@ -58,6 +58,7 @@ from monovo_cli.geometry.lie import make_pose
 from monovo_cli.geometry.plane import Plane
 
 MASK_GRID_PX = 8  # the plane-visibility mask is evaluated on this grid and interpolated
+CUR_DEPRESSION_DEG = -5.0  # current-frame features: up to 5 deg above the keyframe's horizon
 
 
 @dataclass(frozen=True)
@@ -65,7 +66,9 @@ class FeatureOptions:
     """Settings of :func:`feature_motion`.
 
     ``level``: detect on pyramid level ``level`` (``cv2.pyrDown``, each halves the image; 0 is
-    full resolution); ``features``: ORB's cap per image; ``fast_threshold``: ORB's FAST
+    full resolution), or with None on the coarsest level whose shorter side keeps at least
+    ``detect_side`` px (:meth:`level_for`: the cost stays about the same at any frame size);
+    ``features``: ORB's cap per image; ``fast_threshold``: ORB's FAST
     threshold (grey levels); ``ratio``: Lowe's ratio test on the two nearest Hamming
     neighbours (0: cross-check instead); ``ransac_px``: RANSAC inlier threshold in
     full-resolution pixels, scaled by ``2**level``; ``min_inliers`` / ``min_inlier_ratio``:
@@ -76,7 +79,8 @@ class FeatureOptions:
     Levenberg-Marquardt on the inliers after the homography; ``seed``: OpenCV's RNG seed.
     """
 
-    level: int = 0
+    level: int | None = 0
+    detect_side: int = 256
     features: int = 2000
     fast_threshold: int = 10
     ratio: float = 0.8
@@ -89,9 +93,19 @@ class FeatureOptions:
     refine: bool = True
     seed: int = 0
 
+    def level_for(self, camera: PinholeCamera) -> int:
+        """The pyramid level features are detected on for frames of ``camera``."""
+        if self.level is not None:
+            return int(self.level)
+        level, side = 0, min(camera.width, camera.height)
+        while side // 2 >= self.detect_side:
+            level, side = level + 1, side // 2
+        return level
 
-# The cheap setting: half resolution, half the features (benchmarks/real.py measures both).
-CHEAP = FeatureOptions(level=1, features=1000)
+
+# The cheap setting: at most ~256 px on the shorter side, half the features
+# (benchmarks/real.py measures both).
+CHEAP = FeatureOptions(level=None, features=1000)
 
 
 @dataclass(frozen=True)
@@ -190,14 +204,16 @@ def ground_mask(camera: PinholeCamera, plane: Plane, *, level: int = 0,
 def detect_features(image: np.ndarray, camera: PinholeCamera, *, mask: np.ndarray | None = None,
                     options: FeatureOptions = FeatureOptions()) -> Features:
     """ORB keypoints of ``image`` (H, W) grey (uint8, or float in grey levels) at pyramid level
-    ``options.level``, only where ``mask`` (uint8 of that level, e.g. :func:`ground_mask`) is
-    non-zero; positions in full-resolution pixels (pixel j of level l is pixel j 2**l)."""
-    img = _pyramid_level(image, options.level)
+    ``options.level_for(camera)``, only where ``mask`` (uint8 of that level, e.g.
+    :func:`ground_mask`) is non-zero; positions in full-resolution pixels (pixel j of level l
+    is pixel j 2**l)."""
+    level = options.level_for(camera)
+    img = _pyramid_level(image, level)
     orb = cv2.ORB_create(nfeatures=options.features, fastThreshold=options.fast_threshold)
     kps, desc = orb.detectAndCompute(img, mask)
     if desc is None or not kps:
         return Features(np.zeros((0, 2)), np.zeros((0, 3)), np.zeros((0, 32), np.uint8))
-    uv = np.array([k.pt for k in kps], dtype=float) * 2.0 ** options.level
+    uv = np.array([k.pt for k in kps], dtype=float) * 2.0 ** level
     return Features(uv, camera.rays(uv), desc)
 
 
@@ -312,7 +328,7 @@ def motion_from_features(key: Features, cur: Features, camera: PinholeCamera, pl
     cv2.setRNGSeed(options.seed)
     try:
         H, inl = cv2.findHomography(src[:, :2], dst[:, :2], cv2.RANSAC,
-                                    options.ransac_px * 2.0 ** options.level,
+                                    options.ransac_px * 2.0 ** options.level_for(camera),
                                     maxIters=options.ransac_iterations, confidence=0.999)
     except cv2.error:  # degenerate point sets
         return None
@@ -357,10 +373,11 @@ def feature_motion(key_image: np.ndarray, cur_image: np.ndarray, camera: Pinhole
     or inliers, a degenerate homography, or one that is not this plane's); never raises
     for such images. Deterministic (module docstring).
     """
-    key_mask = ground_mask(camera, plane, level=options.level,
+    level = options.level_for(camera)
+    key_mask = ground_mask(camera, plane, level=level,
                            min_depression_deg=options.min_depression_deg, region=region,
                            usable=mask)
-    cur_mask = ground_mask(camera, plane, level=options.level, min_depression_deg=-5.0,
+    cur_mask = ground_mask(camera, plane, level=level, min_depression_deg=CUR_DEPRESSION_DEG,
                            usable=mask)
     if not key_mask.any() or not cur_mask.any():
         return None
