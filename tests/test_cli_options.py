@@ -132,3 +132,50 @@ def test_batch_options_survive_json_and_are_checked():
         normalize_options({"track": {"estimator": {"robustt": "none"}}})
     with pytest.raises(ValueError, match="unknown option.*robust of JobOptions"):
         normalize_options({"robust": "none"})
+
+
+# ----------------------------------------------------------------------------- -q / -v
+
+
+@pytest.fixture
+def summary_track(monkeypatch):
+    """track_sequence replaced by a fake returning a summary (printed without -q)."""
+
+    def fake(*a, **kw):
+        return SimpleNamespace(frames=2, seconds=1.0, fps=2.0, mean_msd=0.5, reanchored=0,
+                               lost=0, distance_m=0.1)
+
+    monkeypatch.setattr(track, "track_sequence", fake)
+
+
+@pytest.mark.parametrize("where", ["before", "after", "both"])
+def test_quiet_before_or_after_the_command(summary_track, tmp_path, where):
+    args = ["track", "seq", "-o", str(tmp_path / "o")]
+    loud = CliRunner().invoke(main, args)
+    assert loud.exit_code == 0 and "tracked 2 frames" in loud.output
+    args = {"before": ["-q", *args], "after": [*args, "--quiet"], "both": ["-q", *args, "-q"]}[where]
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 0, r.output
+    assert r.output == ""
+
+
+@pytest.mark.parametrize("where", ["before", "after"])
+def test_verbose_before_or_after_the_command(monkeypatch, tmp_path, where):
+    def boom(*a, **kw):
+        raise RuntimeError("simulated fault")
+
+    monkeypatch.setattr(track, "track_sequence", boom)
+    args = ["track", "seq", "-o", str(tmp_path / "o")]
+    plain = CliRunner().invoke(main, args)
+    assert plain.exit_code == 1 and "(run with -v for the traceback)" in plain.output
+    r = CliRunner().invoke(main, ["-v", *args] if where == "before" else [*args, "-v"])
+    # with -v the internal error is not turned into one line: its traceback is shown
+    assert r.exit_code == 1 and isinstance(r.exception, RuntimeError), r.output
+    assert "run with -v" not in r.output
+
+
+@pytest.mark.parametrize("command", ["synth", "init", "track", "overlay", "eval", "batch"])
+def test_every_command_takes_q_and_v_in_both_places(command):
+    for args in (["-q", "-v", command, "--help"], [command, "-q", "-v", "--help"]):
+        r = CliRunner().invoke(main, args)
+        assert r.exit_code == 0 and "-q, --quiet" in r.output, (args, r.output)

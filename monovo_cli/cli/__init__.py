@@ -1,10 +1,10 @@
 """The ``monovo`` command line: parse, set up logging and progress, one library call per command.
 
-:mod:`~monovo_cli.cli.group` holds the group (errors to exit statuses, logging, signals,
-the progress bar), :mod:`~monovo_cli.cli.options` the options several commands share, and
-each command has its own module. Heavy modules (numpy, OpenCV, the pipeline) are imported
-inside the commands, so that ``monovo --help`` starts at once and a batch worker can limit
-its threads before they load.
+:mod:`~monovo_cli.cli.group` holds the group (-q/-v, errors to exit statuses, logging,
+signals, the progress bar), :mod:`~monovo_cli.cli.options` the options several commands
+share, each declared once, and each command has its own module. A command imports the
+library (numpy, OpenCV, the pipeline) when it runs, looking its function up then, so that
+``monovo --help`` starts at once.
 """
 
 from monovo_cli.cli import batch, evaluate, init, overlay, synth, track

@@ -6,10 +6,9 @@ from pathlib import Path
 
 import click
 
-from monovo_cli.cli.group import BadInput, log_level, progress_bar, setup
+from monovo_cli.cli.group import BadInput, common, log_level, progress_bar
 from monovo_cli.cli.options import (
     LOOP,
-    common,
     output_option,
     overwrite_option,
     side_inputs,
@@ -42,9 +41,8 @@ from monovo_cli.cli.options import (
 @side_inputs(batch=True)
 @track_options(LOOP)
 @common
-@click.pass_context
-def batch(ctx, root, out, pattern, workers, scheduler, use_dask, resume, overwrite,
-          skip_bad_frames, mask, prior, covariance, options, quiet, verbose):
+def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, overwrite,
+          skip_bad_frames, mask, prior, covariance, options):
     """Track every sequence under ROOT (each a folder holding frames/ and init.yaml).
 
     \b
@@ -58,7 +56,6 @@ def batch(ctx, root, out, pattern, workers, scheduler, use_dask, resume, overwri
       monovo batch archive -o results --resume
       monovo batch archive -o results --scheduler tcp://head:8786
     """
-    setup(ctx, quiet, verbose)
     import contextlib
     import dataclasses
 
@@ -69,22 +66,22 @@ def batch(ctx, root, out, pattern, workers, scheduler, use_dask, resume, overwri
                                "the complete sequences, --overwrite redoes all")
     job = {"track": dataclasses.asdict(options), "mask": mask.resolve() if mask else None,
            "prior": prior, "covariance": covariance, "skip_bad_frames": skip_bad_frames}
-    if quiet:
+    if verbosity.quiet:
         redirect = contextlib.nullcontext()
     else:  # warnings about failed sequences above the bar, not through it
         from tqdm.contrib.logging import logging_redirect_tqdm
 
         redirect = logging_redirect_tqdm()
-    with progress_bar(quiet, "seq") as bar, redirect:
+    with progress_bar(verbosity.quiet, "seq") as bar, redirect:
         s = run_batch(root, out, job, pattern=pattern, workers=workers,
                       scheduler=scheduler, dask=use_dask, resume=resume, overwrite=overwrite,
-                      log_level=log_level(quiet, verbose), progress=bar)
+                      log_level=log_level(verbosity), progress=bar)
     n, failed = len(s.results), s.failed
-    if not quiet:
+    if not verbosity.quiet:
         click.echo(f"{n} sequence(s) in {s.seconds:.1f} s: {s.count('ok')} tracked, "
                    f"{s.count('skipped')} skipped (complete), {len(failed)} failed; "
                    f"summary in {s.summary_path}")
-    if verbose:
+    if verbosity.verbose:
         for r in s.internal_errors:
             if r.get("traceback"):
                 click.echo(f"{r['sequence']}:\n{r['traceback']}", err=True)
@@ -94,5 +91,5 @@ def batch(ctx, root, out, pattern, workers, scheduler, use_dask, resume, overwri
                f"{first['error']} (all in {s.summary_path})")
         if s.internal_errors:
             click.echo(f"Error: {msg}", err=True)
-            ctx.exit(1)
+            raise click.exceptions.Exit(1)
         raise BadInput(msg)

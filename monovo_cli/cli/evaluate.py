@@ -6,8 +6,7 @@ from pathlib import Path
 
 import click
 
-from monovo_cli.cli.group import setup
-from monovo_cli.cli.options import common
+from monovo_cli.cli.group import common
 
 
 @click.command(name="eval")
@@ -17,8 +16,7 @@ from monovo_cli.cli.options import common
               help="Also give the ATE after a rigid SE(3) alignment (Umeyama, no scale).")
 @click.option("--json", "as_json", is_flag=True, help="Print the measures as JSON.")
 @common
-@click.pass_context
-def eval_(ctx, estimate, groundtruth, align, as_json, quiet, verbose):
+def eval_(verbosity, estimate, groundtruth, align, as_json):
     """Error tables of the trajectory ESTIMATE against GROUNDTRUTH (both TUM files).
 
     \b
@@ -27,7 +25,6 @@ def eval_(ctx, estimate, groundtruth, align, as_json, quiet, verbose):
     trajectory error, the final drift and the rotation drift:
       monovo eval out/trajectory.tum demo/groundtruth.tum --align
     """
-    setup(ctx, quiet, verbose)
     from monovo_cli.core.evaluate import evaluate, format_report
     from monovo_cli.io.formats import read_tum
 

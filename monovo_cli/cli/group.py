@@ -1,4 +1,4 @@
-"""The ``monovo`` group: library errors to exit statuses, logging, signals, the progress bar.
+"""The ``monovo`` group: -q/-v, library errors to exit statuses, logging, signals, progress.
 
 Exit status (docs/guide.md "Commands"): 0 success; 2 bad usage or bad input (one line on
 stderr, no traceback); 1 internal error; 130 on Ctrl-C, 143 on SIGTERM (what was done is
@@ -8,6 +8,7 @@ kept on disk).
 from __future__ import annotations
 
 import errno
+import functools
 import logging
 import signal
 import sys
@@ -18,6 +19,7 @@ from typing import NoReturn
 import click
 
 from monovo_cli import __version__
+from monovo_cli.cli.options import Verbosity, verbosity_options
 from monovo_cli.errors import MonovoError
 
 log = logging.getLogger("monovo_cli")
@@ -49,7 +51,7 @@ class MonovoGroup(click.Group):
         try:
             return super().invoke(ctx)
         except MonovoError as exc:
-            if ctx.meta.get("monovo.verbose"):
+            if _verbose(ctx):
                 log.exception("details")
             raise BadInput(str(exc)) from None
         except (click.ClickException, click.exceptions.Exit, click.exceptions.Abort):
@@ -69,7 +71,7 @@ class MonovoGroup(click.Group):
         except OSError as exc:
             if exc.errno not in _ENVIRONMENT_ERRNOS:
                 _internal_error(ctx, exc)
-            if ctx.meta.get("monovo.verbose"):
+            if _verbose(ctx):
                 log.exception("details")
             # A full disk, a read-only or failing device: the outputs cannot be written,
             # which the user can fix (exit 2), not a bug. No file name: a stream (motion.csv
@@ -84,9 +86,14 @@ class MonovoGroup(click.Group):
             _internal_error(ctx, exc)
 
 
+def _verbose(ctx: click.Context) -> bool:
+    verbosity = ctx.find_object(Verbosity)
+    return verbosity is not None and verbosity.verbose
+
+
 def _internal_error(ctx: click.Context, exc: Exception) -> NoReturn:
     """A bug: one line on stderr and exit 1, or the traceback with -v."""
-    if ctx.meta.get("monovo.verbose"):
+    if _verbose(ctx):
         raise exc
     msg = f"internal error: {type(exc).__name__}: {exc} (run with -v for the traceback)"
     click.echo(f"Error: {msg}", err=True)
@@ -104,19 +111,29 @@ def _silence_stdout() -> None:
         pass
 
 
-def log_level(quiet: bool, verbose: bool) -> int:
+def log_level(verbosity: Verbosity) -> int:
     """The ``monovo_cli`` loggers' level: DEBUG with -v, ERROR with -q, else WARNING."""
-    return logging.DEBUG if verbose else (logging.ERROR if quiet else logging.WARNING)
+    if verbosity.verbose:
+        return logging.DEBUG
+    return logging.ERROR if verbosity.quiet else logging.WARNING
 
 
-def setup(ctx: click.Context, quiet: bool, verbose: bool) -> None:
-    """What every command does first: remember -q/-v, configure logging, catch SIGTERM."""
-    ctx.meta["monovo.verbose"] = verbose
-    ctx.meta["monovo.quiet"] = quiet
-    level = log_level(quiet, verbose)
-    logging.basicConfig(level=level, format="monovo: %(levelname)s: %(message)s", stream=sys.stderr)
-    logging.getLogger("monovo_cli").setLevel(level)
-    signal.signal(signal.SIGTERM, _on_sigterm)
+def common(f):
+    """-q/--quiet and -v/--verbose on a command (see :class:`Verbosity`); before it runs,
+    logging goes to stderr at their level and SIGTERM stops it cleanly. The command gets
+    the :class:`Verbosity` as its first argument."""
+
+    @functools.wraps(f)
+    def command(*args, **kwargs):
+        verbosity = click.get_current_context().ensure_object(Verbosity)
+        level = log_level(verbosity)
+        logging.basicConfig(level=level, format="monovo: %(levelname)s: %(message)s",
+                            stream=sys.stderr)
+        logging.getLogger("monovo_cli").setLevel(level)
+        signal.signal(signal.SIGTERM, _on_sigterm)
+        return f(verbosity, *args, **kwargs)
+
+    return verbosity_options(command)
 
 
 class _Progress:
@@ -153,6 +170,7 @@ def progress_bar(quiet: bool, unit: str) -> Iterator[_Progress]:
 
 @click.group(cls=MonovoGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, "--version", prog_name="monovo")
+@verbosity_options
 def main() -> None:
     """Monocular visual odometry over planar ground from intensity differences.
 

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import click
 
-from monovo_cli.cli.group import setup
-from monovo_cli.cli.options import MODEL, common, output_option, params_option, seq_argument, track_options
+from monovo_cli.cli.group import common
+from monovo_cli.cli.options import MODEL, output_option, params_option, seq_argument, track_options
 
 
 @click.command()
@@ -14,14 +14,12 @@ from monovo_cli.cli.options import MODEL, common, output_option, params_option, 
 @output_option("The model file to write (model.npz).")
 @track_options(MODEL)
 @common
-@click.pass_context
-def init(ctx, seq, params, out, options, quiet, verbose):
+def init(verbosity, seq, params, out, options):
     """Build the ground model and its observation points from frame 0 of SEQ."""
-    setup(ctx, quiet, verbose)
     from monovo_cli.pipeline.track import init_model
 
     key = init_model(seq, params, out, options)
-    if not quiet:
+    if not verbosity.quiet:
         counts = ", ".join(str(len(kl.points)) for kl in key.levels)
         click.echo(f"wrote {out}: {len(key.levels)} levels, observation points {counts}, "
                    f"threshold {key.threshold:.3g}")

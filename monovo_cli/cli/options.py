@@ -10,6 +10,7 @@ import functools
 import importlib
 import inspect
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -18,11 +19,28 @@ import click
 # --------------------------------------------------------------------------- every command
 
 
-def common(f):
-    """-q/--quiet and -v/--verbose on every command."""
-    f = click.option("-q", "--quiet", is_flag=True, help="No progress bar, no summary.")(f)
-    f = click.option("-v", "--verbose", is_flag=True, help="Debug logging and tracebacks.")(f)
-    return f
+@dataclass
+class Verbosity:
+    """-q/--quiet and -v/--verbose, given before the command's name (``monovo -q track``),
+    after it (``monovo track -q``) or both: the ``obj`` of the group's click context, which
+    the command's context shares."""
+
+    quiet: bool = False
+    verbose: bool = False
+
+
+def _set_verbosity(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+    verbosity = ctx.ensure_object(Verbosity)  # on the group's context when it parses first
+    if value:
+        setattr(verbosity, param.name, True)
+
+
+def verbosity_options(f):
+    """-q/--quiet and -v/--verbose, on the group and on every command (see :class:`Verbosity`)."""
+    f = click.option("-q", "--quiet", is_flag=True, expose_value=False, callback=_set_verbosity,
+                     help="No progress bar, no summary.")(f)
+    return click.option("-v", "--verbose", is_flag=True, expose_value=False,
+                        callback=_set_verbosity, help="Debug logging and tracebacks.")(f)
 
 
 def overwrite_option(help: str):

@@ -6,10 +6,9 @@ from pathlib import Path
 
 import click
 
-from monovo_cli.cli.group import progress_bar, setup
+from monovo_cli.cli.group import common, progress_bar
 from monovo_cli.cli.options import (
     LibraryDefault,
-    common,
     given,
     keyword_default,
     output_option,
@@ -37,8 +36,7 @@ from monovo_cli.cli.options import (
               default_text=keyword_default("monovo_cli.pipeline.overlay", "overlay_sequence", "fps"))
 @overwrite_option("Replace the output if it exists.")
 @common
-@click.pass_context
-def overlay(ctx, seq, params, trajectory, out, triangle, points, fps, overwrite, quiet, verbose):
+def overlay(verbosity, seq, params, trajectory, out, triangle, points, fps, overwrite):
     """Render the glued triangle: a triangle on the ground moved with the estimated poses.
 
     \b
@@ -46,11 +44,10 @@ def overlay(ctx, seq, params, trajectory, out, triangle, points, fps, overwrite,
       monovo track demo -o out
       monovo overlay demo -t out/trajectory.csv -o out/overlay.mp4
     """
-    setup(ctx, quiet, verbose)
     from monovo_cli.pipeline.overlay import overlay_sequence
 
-    with progress_bar(quiet, "frame") as bar:
+    with progress_bar(verbosity.quiet, "frame") as bar:
         s = overlay_sequence(seq, params, trajectory, out, triangle_px=triangle, points=points,
                              overwrite=overwrite, progress=bar, **given(fps=fps))
-    if not quiet:
+    if not verbosity.quiet:
         click.echo(f"wrote {s.frames} frames to {s.out} in {s.seconds:.1f} s")

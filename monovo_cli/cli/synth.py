@@ -6,10 +6,9 @@ from pathlib import Path
 
 import click
 
-from monovo_cli.cli.group import progress_bar, setup
+from monovo_cli.cli.group import common, progress_bar
 from monovo_cli.cli.options import (
     LibraryDefault,
-    common,
     given,
     keyword_default,
     overwrite_option,
@@ -43,11 +42,9 @@ def _default(name: str):
                    "experiment, where the ground's texture is exactly known.")
 @overwrite_option("Replace OUT if it exists.")
 @common
-@click.pass_context
-def synth(ctx, out, preset, frames, size, noise_var, seed, texture, max_translation, exposure,
-          clean_frame0, overwrite, quiet, verbose):
+def synth(verbosity, out, preset, frames, size, noise_var, seed, texture, max_translation,
+          exposure, clean_frame0, overwrite):
     """Write a synthetic sequence with ground truth into OUT."""
-    setup(ctx, quiet, verbose)
     from monovo_cli.synth.write import synthesize
 
     if not overwrite and out.is_dir() and any(out.iterdir()):
@@ -61,10 +58,10 @@ def synth(ctx, out, preset, frames, size, noise_var, seed, texture, max_translat
             shutil.rmtree(out)
         else:
             out.unlink()
-    with progress_bar(quiet, "frame") as bar:
+    with progress_bar(verbosity.quiet, "frame") as bar:
         s = synthesize(out, frames=frames, size=size, texture=texture,
                        max_translation=max_translation, exposure=exposure,
                        clean_frame0=clean_frame0, progress=bar,
                        **given(preset=preset, noise_var=noise_var, seed=seed))
-    if not quiet:
+    if not verbosity.quiet:
         click.echo(f"wrote {s.sequences} sequence(s) of {s.frames_per_sequence} frames to {out}")

@@ -6,10 +6,9 @@ from pathlib import Path
 
 import click
 
-from monovo_cli.cli.group import progress_bar, setup
+from monovo_cli.cli.group import common, progress_bar
 from monovo_cli.cli.options import (
     LOOP,
-    common,
     output_option,
     overwrite_option,
     params_option,
@@ -33,23 +32,21 @@ from monovo_cli.cli.options import (
 @side_inputs()
 @track_options(LOOP)
 @common
-@click.pass_context
-def track(ctx, seq, params, out, model, overwrite, groundtruth, skip_bad_frames, mask, prior,
-          covariance, options, quiet, verbose):
+def track(verbosity, seq, params, out, model, overwrite, groundtruth, skip_bad_frames, mask,
+          prior, covariance, options):
     """Estimate the motion of every frame of SEQ; write motion.csv and the trajectory.
 
     With -o DIR also trajectory.png, the path seen from above on the ground plane.
     """
-    setup(ctx, quiet, verbose)
     from monovo_cli.pipeline.track import track_sequence
 
     to_stdout = out == "-"
-    with progress_bar(quiet, "frame") as bar:
+    with progress_bar(verbosity.quiet, "frame") as bar:
         s = track_sequence(seq, params, None if to_stdout else Path(out), options,
                            groundtruth=groundtruth, mask=mask, prior=prior, covariance=covariance,
                            model=model, overwrite=overwrite, skip_bad_frames=skip_bad_frames,
                            progress=bar)
-    if not quiet:
+    if not verbosity.quiet:
         click.echo(f"tracked {s.frames} frames in {s.seconds:.1f} s ({s.fps:.1f} frames/s): "
                    f"mean msd {s.mean_msd:.2f}, {s.reanchored} re-anchored, {s.lost} lost, "
                    f"path length {s.distance_m:.3f} m"
