@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from monovo_cli.core.estimate import distortion_jacobian, observation_matrix
+from monovo_cli.core.jacobian import distortion_jacobian, observation_matrix
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import se3_exp
 from monovo_cli.image.sampling import sample_bilinear

@@ -4,22 +4,11 @@ For observation points ``X_i`` (keyframe camera, on the ground plane) with keyfr
 intensities ``I_i`` and gradients ``g_i``, the current frame's pose ``cur_from_key = T``
 minimises  sum_i rho(I_cur(pi(T X_i)) - I_i)  (eqs. 10.1-10.3, 10.19 with U = sigma^2 I).
 
-Linearisation (our derivation; it replaces eqs. 10.5-10.12, which carry a lost sign in
-the projection derivative, eq. 10.6, and a C_X where C_Y belongs, eq. 10.9). For the
-projection u = fx X/Z + cx, v = fy Y/Z + cy:
-
-    d(u, v)/dX = [[fx/Z, 0, -fx X/Z^2],
-                  [0, fy/Z, -fy Y/Z^2]]                      (eq. 10.6, corrected sign)
-
-and for a small rigid motion exp(xi^) with xi = (v, w):  d(exp(xi^) X)/d xi = [I | -[X]x].
-The observation row (the paper's o, eq. 10.12) is o = g^T d(u,v)/dX [I | -[X]x], i.e. with
-a = (gx fx/Z, gy fy/Z, -(gx fx X + gy fy Y)/Z^2):
-
-    o = (a1, a2, a3,  a3 Y - a2 Z,  a1 Z - a3 X,  a2 X - a1 Y).
-
-It is evaluated once per keyframe at the keyframe's points (inverse compositional
-Gauss-Newton: the paper's constant g, with a constant observation matrix O), and each
-iteration solves the weighted normal equations (eq. 10.21 with robust weights W)
+The observation rows o_i (the paper's o, eq. 10.12; derived in :mod:`monovo_cli.core.jacobian`,
+which corrects eqs. 10.6 and 10.9) are evaluated once per keyframe at the keyframe's points
+(inverse compositional Gauss-Newton: the paper's constant g, with a constant observation
+matrix O), and each iteration solves the weighted normal equations (eq. 10.21 with robust
+weights W, :mod:`monovo_cli.core.robust`)
 
     xi = (O^T W O)^-1 O^T W FD,     FD_i = I_cur(pi(T X_i)) - I_i   (exact warp, eq. 10.7)
 
@@ -56,6 +45,8 @@ import cv2
 import numpy as np
 
 from monovo_cli.core.ground import LevelPoints
+from monovo_cli.core.jacobian import distortion_jacobian, observation_matrix, project_in_front
+from monovo_cli.core.robust import inlier_fraction, mad_scale, rho_sum, robust_weights
 from monovo_cli.geometry.lie import se3_exp
 from monovo_cli.image.sampling import INTERPOLATION, pixel_grid, sample_at
 
@@ -76,101 +67,7 @@ class EstimatorOptions:
     #                                  or "lanczos4" (image.sampling.INTERPOLATION)
 
 
-def observation_rows(X: np.ndarray, gx: np.ndarray, gy: np.ndarray, fx: float, fy: float,
-                     distortion_jacobian: np.ndarray | None = None,
-                     inverse_depth: np.ndarray | None = None) -> np.ndarray:
-    """The observation rows o_i as columns (6, N): d(intensity)/d(twist) at points ``X`` (N, 3).
-
-    The derivative of the intensity at the projection of ``exp(xi^) X`` with respect to the
-    twist ``xi = (v, w)`` at 0 (grey levels per metre / per radian), for image gradients
-    ``gx``, ``gy`` (N,) in grey levels per pixel at the projections. ``distortion_jacobian``
-    (N, 2, 2) is d(pixel)/d(normalised coordinates) of a distorted camera; without it the
-    camera is a pinhole, d(pixel)/d(normalised) = diag(fx, fy). ``inverse_depth`` (N,) is
-    1 / Z (default), or 0 where a caller masks points behind the camera. Rows 0..2 are the
-    vector ``a`` of the module docstring.
-    """
-    x, y, z = X[:, 0], X[:, 1], X[:, 2]
-    if distortion_jacobian is None:
-        gx, gy = gx * fx, gy * fy
-    else:
-        D = distortion_jacobian
-        gx, gy = gx * D[:, 0, 0] + gy * D[:, 1, 0], gx * D[:, 0, 1] + gy * D[:, 1, 1]
-    iz = 1.0 / z if inverse_depth is None else inverse_depth
-    a1 = gx * iz
-    a2 = gy * iz
-    a3 = -(a1 * x + a2 * y) * iz
-    return np.stack([a1, a2, a3, a3 * y - a2 * z, a1 * z - a3 * x, a2 * x - a1 * y])
-
-
-def observation_matrix(X: np.ndarray, grad: np.ndarray, fx: float, fy: float,
-                       distortion_jacobian: np.ndarray | None = None) -> np.ndarray:
-    """The rows o_i (N, 6) of the observation matrix O at points ``X`` (N, 3) with gradients
-    ``grad`` (N, 2) (grey levels per px), a view of :func:`observation_rows`' (6, N)."""
-    g = grad.astype(np.float64)
-    return observation_rows(np.asarray(X, dtype=np.float64), g[:, 0], g[:, 1], fx, fy,
-                            distortion_jacobian).T
-
-
-def distortion_jacobian(camera, X: np.ndarray, eps: float = 1e-6) -> np.ndarray:
-    """d(pixel)/d(normalised coordinates) (N, 2, 2) of ``camera`` at points ``X`` (N, 3)."""
-    xn, yn = X[:, 0] / X[:, 2], X[:, 1] / X[:, 2]
-    J = np.empty((len(X), 2, 2))
-    for j, (dx, dy) in enumerate(((eps, 0.0), (0.0, eps))):
-        up = camera.distort_normalized(xn + dx, yn + dy)
-        dn = camera.distort_normalized(xn - dx, yn - dy)
-        J[:, 0, j] = camera.fx * (up[0] - dn[0]) / (2 * eps)
-        J[:, 1, j] = camera.fy * (up[1] - dn[1]) / (2 * eps)
-    return J
-
-
 REWEIGHT_PX = 0.5  # a step that moved the points further than this gets a fresh O^T W O
-MAD_SAMPLES = 5000  # the robust scale's median is taken over at most about this many residuals
-
-
-def mad_scale(r: np.ndarray, valid: np.ndarray | None = None) -> float:
-    """Robust scale of residuals ``r`` (N,) (at ``valid``): 1.4826 x median |r|, over an evenly
-    strided subset of about MAD_SAMPLES when N is larger (the scale only sets the weights' knee)."""
-    step = max(1, len(r) // MAD_SAMPLES)
-    sub = r[::step] if valid is None else r[::step][valid[::step]]
-    return max(1.4826 * float(np.median(np.abs(sub))), 1e-3) if len(sub) else 1e-3
-
-
-def robust_weights(r: np.ndarray, kind: str, *, huber_k: float, tukey_c: float,
-                   scale: float | None = None) -> tuple[np.ndarray, float]:
-    """IRLS weights (N,) float32 for residuals ``r`` and the robust scale (MAD, grey levels)."""
-    if len(r) == 0:
-        return np.ones(0, np.float32), 0.0
-    if scale is None:
-        scale = mad_scale(r)
-    if kind == "none":
-        return np.ones(len(r), np.float32), scale
-    a = np.abs(r) * np.float32(1.0 / scale)
-    if kind == "huber":
-        w = np.minimum(np.float32(1.0), np.float32(huber_k) / np.maximum(a, np.float32(1e-12)))
-    elif kind == "tukey":
-        q = np.clip(1.0 - a * a * np.float32(1.0 / tukey_c ** 2), 0.0, None)
-        w = q * q
-    else:
-        raise ValueError(f"unknown robust estimator {kind!r}")
-    return w.astype(np.float32, copy=False), scale
-
-
-def _rho_sum(r: np.ndarray, scale: float, opts: EstimatorOptions) -> float:
-    """Total robust cost of residuals ``r`` at a fixed ``scale`` (rho(0) = 0)."""
-    a = np.abs(r)
-    a *= np.float32(1.0 / scale)
-    if opts.robust == "huber":
-        m = np.minimum(a, np.float32(opts.huber_k))
-        rho = m * (a - 0.5 * m)  # 0.5 a^2 inside k, k a - 0.5 k^2 outside
-    elif opts.robust == "tukey":
-        c = opts.tukey_c
-        q = np.clip(1.0 - (a / c) ** 2, 0.0, None)
-        rho = (c * c / 6.0) * (1.0 - q ** 3)
-    else:
-        rho = 0.5 * a * a
-    return float(np.sum(rho, dtype=np.float64))
-
-
 @dataclass(frozen=True)
 class KeyLevel:
     """A keyframe's points at one level with their constant observation matrix.
@@ -272,25 +169,6 @@ class Estimate:
     finest_iterations: int = 0
 
 
-def project_in_front(cam, Xc: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pixels (u, v) (N,) float64 of camera-frame points ``Xc`` (N, 3), NaN for points not in
-    front of the camera, and that in-front mask (N,) bool."""
-    z = Xc[:, 2]
-    in_front = z > 1e-9
-    with np.errstate(divide="ignore", invalid="ignore"):
-        if cam.has_distortion:
-            uv = cam.project(np.where(in_front[:, None], Xc, np.nan))
-            return uv[:, 0], uv[:, 1], in_front
-        iz = np.where(in_front, 1.0 / z, np.nan)
-    u = Xc[:, 0] * iz
-    u *= cam.fx
-    u += cam.cx
-    v = Xc[:, 1] * iz
-    v *= cam.fy
-    v += cam.cy
-    return u, v, in_front
-
-
 def residuals(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float = 1.0,
               bias: float = 0.0, flag: int = cv2.INTER_LINEAR) -> tuple[np.ndarray, np.ndarray]:
     """FD (eq. 10.2) at one level: ``I_cur(pi(T X_i)) - (gain I_i + bias)`` (N,) float32, validity (N,).
@@ -348,6 +226,10 @@ def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float,
     iterations = 0
     min_valid = max(opts.min_valid_points, npar)
     scale = None  # the robust scale, from this level's first residuals (MAD)
+
+    def rho(res: np.ndarray) -> float:  # total robust cost at the level's scale
+        return rho_sum(res, scale, opts.robust, huber_k=opts.huber_k, tukey_c=opts.tukey_c)
+
     H, move = None, 0.0
     for _ in range(max_iterations):
         if nv < min_valid:
@@ -381,7 +263,7 @@ def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float,
             if npar == 8:
                 gain, bias = gain + p[6], bias + p[7]
             break
-        cost = _rho_sum(r, scale, opts) / nv
+        cost = rho(r) / nv
         for _halving in range(4):
             if _halving:
                 T_new = T @ se3_exp(-p[:6])
@@ -389,7 +271,7 @@ def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float,
             b_new = bias + (p[7] if npar == 8 else 0.0)
             r_new, valid_new = residuals(level, image, T_new, g_new, b_new, flag)
             nv_new = np.count_nonzero(valid_new)
-            if nv_new >= min_valid and _rho_sum(r_new, scale, opts) / nv_new <= cost * (1.0 + 1e-7):
+            if nv_new >= min_valid and rho(r_new) / nv_new <= cost * (1.0 + 1e-7):
                 break
             p = 0.5 * p
         else:
@@ -407,19 +289,6 @@ def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float,
 def _msd(r: np.ndarray, n_valid: int) -> float:
     """Mean squared difference over the valid points of ``r`` (0 at the invalid ones)."""
     return float(np.dot(r, r)) / n_valid if n_valid else float("inf")
-
-
-def inlier_bound(noise_sigma: float) -> float:
-    """The largest intensity difference (grey levels) of an inlier: ``3 sqrt(2) sigma`` (the
-    difference of two images with noise ``sigma`` each), sigma at least one grey level."""
-    return 3.0 * np.sqrt(2.0) * max(noise_sigma, 1.0)
-
-
-def inlier_fraction(r: np.ndarray, valid: np.ndarray, noise_sigma: float) -> float:
-    """Share of all points that are in view with ``|r| <`` :func:`inlier_bound`."""
-    if len(r) == 0:
-        return 0.0
-    return float(np.count_nonzero(valid & (np.abs(r) < inlier_bound(noise_sigma))) / len(r))
 
 
 def coarse_search(level: KeyLevel, image: np.ndarray, cur_from_key: np.ndarray, *,

@@ -28,10 +28,10 @@ from monovo_cli.core.estimate import (
     KeyLevel,
     coarse_search,
     estimate_motion,
-    inlier_fraction,
 )
 from monovo_cli.core.ground import default_threshold, rectangle_corners, require_points, select_points
 from monovo_cli.core.plane_fit import PlanePrior, refine_plane_and_motion
+from monovo_cli.core.robust import inlier_fraction
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera

@@ -19,14 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monovo_cli.core.estimate import (
-    EstimatorOptions,
-    distortion_jacobian,
-    observation_rows,
-    project_in_front,
-    robust_weights,
-)
+from monovo_cli.core.estimate import EstimatorOptions
 from monovo_cli.core.ground import LevelPoints
+from monovo_cli.core.jacobian import distortion_jacobian, observation_rows, project_in_front
+from monovo_cli.core.robust import robust_weights
 from monovo_cli.geometry.lie import se3_exp
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.image.gradients import sobel_gradient
