@@ -5,7 +5,8 @@ into a validated :class:`InitConfig` (a :class:`~monovo_cli.geometry.camera.Pinh
 the ground :class:`~monovo_cli.geometry.plane.Plane` and the ground region),
 :func:`dump_init` writes one back. Every problem raises
 :class:`~monovo_cli.errors.ConfigError` with one line: the file, what is wrong and what
-would fix it, e.g. ``init.yaml: camera.fx must be > 0, got -3``.
+would fix it, e.g. ``init.yaml: camera.fx must be > 0, got -3`` (the generic field readers
+are in :mod:`monovo_cli.io.yaml_fields`).
 
 Instead of ``normal`` + ``distance`` the ground may be given as ``height`` (m),
 ``pitch_deg`` and optional ``roll_deg`` (the convention is in
@@ -14,10 +15,8 @@ Instead of ``normal`` + ``distance`` the ground may be given as ``height`` (m),
 
 from __future__ import annotations
 
-import difflib
 import logging
 import math
-import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -29,6 +28,20 @@ from monovo_cli.errors import ConfigError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.plane import Plane, normal_from_pitch_roll
 from monovo_cli.io.atomic import atomic_write_text
+from monovo_cli.io.yaml_fields import (
+    UniqueKeyLoader,
+    check_keys,
+    fail,
+    flow_list,
+    integer,
+    mapping,
+    number,
+    numbers,
+    positive,
+    read_yaml,
+    show,
+    yaml_float,
+)
 
 log = logging.getLogger(__name__)
 
@@ -42,9 +55,6 @@ MIN_NORMAL_Z = 1e-3             # normal . optical axis: the plane must lie in f
 MIN_RAY_DOT = 1e-6              # n . ray at a region pixel: the ray must hit the plane
 MAX_DEPTH_RATIO = 1e4           # region depth / plane distance: beyond this, too oblique
 UNIT_TOLERANCE = 1e-6           # |normal| further than this from 1 is normalised (warning)
-
-# PyYAML (YAML 1.1) reads 1e3 and 1.5e3 as strings; accept such plain numbers.
-_NUMBER_RE = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
 
 
 Region = tuple[int, int, int, int]
@@ -65,138 +75,6 @@ class InitConfig:
     path: Path
 
 
-# ----------------------------------------------------------------------------- helpers
-
-
-def _fail(name: str, message: str) -> ConfigError:
-    return ConfigError(f"{name}: {message}".replace("\n", "\\n").replace("\r", "\\r"))
-
-
-def _show(value: Any) -> str:
-    """A short one-line rendering of a YAML value for messages (never expands aliases)."""
-    if value is None:
-        return "null"
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, int):
-        if abs(value) < 10**30:
-            return str(value)
-        return f"a {int(value.bit_length() * 0.30103) + 1}-digit number"
-    if isinstance(value, float):
-        return repr(value)
-    if isinstance(value, str):
-        s = value if len(value) <= 40 else value[:37] + "..."
-        return repr(s)
-    if isinstance(value, (list, tuple)):
-        return f"a list of {len(value)} items"
-    if isinstance(value, dict):
-        return "a mapping"
-    return f"a {type(value).__name__}"
-
-
-def _number(name: str, where: str, value: Any) -> float:
-    """A finite float from a YAML value, or ConfigError."""
-    if isinstance(value, bool) or value is None:
-        raise _fail(name, f"{where} must be a number, got {_show(value)}")
-    if isinstance(value, str):
-        if not _NUMBER_RE.fullmatch(value.strip()):
-            raise _fail(name, f"{where} must be a number, got {_show(value)}")
-        value = value.strip()
-    if not isinstance(value, (int, float, str)):
-        raise _fail(name, f"{where} must be a number, got {_show(value)}")
-    try:
-        x = float(value)
-    except (OverflowError, ValueError):
-        x = math.inf
-    if not math.isfinite(x):
-        raise _fail(name, f"{where} must be a finite number, got {_show(value)}")
-    return x
-
-
-def _integer(name: str, where: str, value: Any) -> int:
-    """A whole number from a YAML value (688 or 688.0), or ConfigError."""
-    if isinstance(value, int) and not isinstance(value, bool):
-        return value
-    x = _number(name, where, value)
-    if not x.is_integer():
-        raise _fail(name, f"{where} must be a whole number, got {_show(value)}")
-    return int(x)
-
-
-def _numbers(name: str, where: str, value: Any, lengths: tuple[int, ...], what: str) -> list[float]:
-    if not isinstance(value, (list, tuple)) or len(value) not in lengths:
-        raise _fail(name, f"{where} must be {what}, got {_show(value)}")
-    return [_number(name, f"{where}[{i}]", v) for i, v in enumerate(value)]
-
-
-def _check_keys(name: str, mapping: dict, allowed: tuple[str, ...], prefix: str) -> None:
-    for key in mapping:
-        if isinstance(key, str) and key in allowed:
-            continue
-        plain = isinstance(key, str) and key.isprintable() and 0 < len(key) <= 40
-        shown = key if plain else _show(key)
-        close = difflib.get_close_matches(str(key), allowed, n=1)
-        hint = f"did you mean '{close[0]}'?" if close else f"expected one of {', '.join(allowed)}"
-        raise _fail(name, f"unknown key '{prefix}{shown}' ({hint})")
-
-
-def _mapping(name: str, where: str, value: Any, what: str) -> dict:
-    if not isinstance(value, dict):
-        raise _fail(name, f"{where} must be a mapping of {what}, got {_show(value)}")
-    return value
-
-
-def _positive(name: str, where: str, value: Any) -> float:
-    x = _number(name, where, value)
-    if x <= 0:
-        raise _fail(name, f"{where} must be > 0, got {_show(value)}")
-    return x
-
-
-class _UniqueKeyLoader(yaml.SafeLoader):
-    """SafeLoader that rejects a key given twice in one mapping."""
-
-    def construct_mapping(self, node, deep=False):
-        if isinstance(node, yaml.MappingNode):
-            seen = set()
-            for key_node, _ in node.value:
-                if key_node.tag == "tag:yaml.org,2002:merge":
-                    continue
-                key = self.construct_object(key_node, deep=deep)
-                try:
-                    duplicate = key in seen
-                    seen.add(key)
-                except TypeError:  # unhashable: SafeLoader reports it
-                    continue
-                if duplicate:
-                    raise yaml.constructor.ConstructorError(
-                        None, None, f"key {_show(key)} is given twice", key_node.start_mark)
-        return super().construct_mapping(node, deep=deep)
-
-
-def _read_yaml(path: Path, name: str, what: str) -> Any:
-    """Parse a YAML file; every failure is one ConfigError line naming ``name``."""
-    try:
-        data = path.read_bytes()
-    except (OSError, ValueError) as exc:
-        reason = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
-        raise _fail(name, f"cannot read {what} ({reason})") from None
-    try:
-        return yaml.load(data, Loader=_UniqueKeyLoader)
-    except yaml.MarkedYAMLError as exc:
-        mark = exc.problem_mark or exc.context_mark
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = " ".join(str(exc.problem or exc.context or "syntax error").split())
-        raise _fail(name, f"not valid YAML{where}: {problem}") from None
-    except yaml.YAMLError as exc:
-        msg = " ".join(str(exc).split())
-        raise _fail(name, f"not valid YAML: {msg}") from None
-    except (ValueError, TypeError, OverflowError, RecursionError, MemoryError) as exc:
-        # e.g. a date such as 2001-13-45, or absurdly deep nesting
-        msg = " ".join(str(exc).split())[:80] or type(exc).__name__
-        raise _fail(name, f"not valid YAML: {msg}") from None
-
-
 # ----------------------------------------------------------------------------- parsing
 
 
@@ -204,37 +82,33 @@ def _distortion(name: str, where: str, value: Any) -> tuple[float, ...]:
     """OpenCV ``k1 k2 p1 p2 [k3 [k4 k5 k6]]`` normalised to 5 coefficients."""
     if value is None:
         return (0.0,) * 5
-    d = _numbers(name, where, value, (4, 5, 8),
+    d = numbers(name, where, value, (4, 5, 8),
                  "a list of 4, 5 or 8 numbers (OpenCV k1 k2 p1 p2 [k3 [k4 k5 k6]])")
     if len(d) == 8:
         if any(c != 0.0 for c in d[5:]):
-            raise _fail(name, f"{where}: the rational model (k4 k5 k6 = {d[5]:g} {d[6]:g} "
+            raise fail(name, f"{where}: the rational model (k4 k5 k6 = {d[5]:g} {d[6]:g} "
                               f"{d[7]:g}) is not supported; use k1 k2 p1 p2 k3 only")
         d = d[:5]
     return tuple(d + [0.0] * (5 - len(d)))
 
 
 def _camera_section(name: str, value: Any) -> PinholeCamera:
-    cam = _mapping(name, "camera", value, "width, height, fx, fy, cx, cy[, distortion]")
-    if "model" in cam:  # a JPL camera model (CAHV, CAHVOR, CAHVORE)
-        from monovo_cli.io.jpl_camera import camera_from_yaml
-
-        return camera_from_yaml(name, cam)
-    _check_keys(name, cam, CAMERA_KEYS, "camera.")
+    cam = mapping(name, "camera", value, "width, height, fx, fy, cx, cy[, distortion]")
+    check_keys(name, cam, CAMERA_KEYS, "camera.")
     for key in CAMERA_KEYS[:6]:
         if key not in cam:
-            raise _fail(name, f"camera.{key} is missing (camera needs width, height, fx, fy, cx, cy)")
+            raise fail(name, f"camera.{key} is missing (camera needs width, height, fx, fy, cx, cy)")
     size = {}
     for key in ("width", "height"):
-        n = _integer(name, f"camera.{key}", cam[key])
+        n = integer(name, f"camera.{key}", cam[key])
         if n <= 0 or n > MAX_IMAGE_SIDE:
-            raise _fail(name, f"camera.{key} must be a whole number of pixels in 1..{MAX_IMAGE_SIDE}, "
-                              f"got {_show(cam[key])}")
+            raise fail(name, f"camera.{key} must be a whole number of pixels in 1..{MAX_IMAGE_SIDE}, "
+                              f"got {show(cam[key])}")
         size[key] = n
-    fx = _positive(name, "camera.fx", cam["fx"])
-    fy = _positive(name, "camera.fy", cam["fy"])
-    cx = _number(name, "camera.cx", cam["cx"])
-    cy = _number(name, "camera.cy", cam["cy"])
+    fx = positive(name, "camera.fx", cam["fx"])
+    fy = positive(name, "camera.fy", cam["fy"])
+    cx = number(name, "camera.cx", cam["cx"])
+    cy = number(name, "camera.cy", cam["cy"])
     dist = _distortion(name, "camera.distortion", cam.get("distortion"))
     return PinholeCamera(size["width"], size["height"], fx, fy, cx, cy, dist)
 
@@ -242,52 +116,48 @@ def _camera_section(name: str, value: Any) -> PinholeCamera:
 def _camera_info(init_name: str, base_dir: Path, value: Any) -> PinholeCamera:
     """A camera from a ROS ``camera_info`` YAML (``camera_file:``, relative to init.yaml)."""
     if not isinstance(value, str) or not value.strip():
-        raise _fail(init_name, f"camera_file must be a file name (a ROS camera_info YAML), "
-                               f"got {_show(value)}")
+        raise fail(init_name, f"camera_file must be a file name (a ROS camera_info YAML), "
+                               f"got {show(value)}")
     path = Path(value.strip()).expanduser()
     if not path.is_absolute():
         path = base_dir / path
     name = str(path)
-    if path.suffix.lower() in (".img", ".lbl", ".xml"):  # a PDS product's camera model
-        from monovo_cli.io.jpl_camera import camera_from_label
-
-        return camera_from_label(init_name, path)
-    data = _read_yaml(path, name, f"the camera_file named in {init_name}")
+    data = read_yaml(path, name, f"the camera_file named in {init_name}")
     fix = "expected a ROS camera_info YAML with image_width, image_height, camera_matrix"
     if not isinstance(data, dict):
-        raise _fail(name, f"not a camera_info file ({fix})")
+        raise fail(name, f"not a camera_info file ({fix})")
     for key in ("image_width", "image_height", "camera_matrix"):
         if key not in data:
-            raise _fail(name, f"not a camera_info file: {key} is missing ({fix})")
+            raise fail(name, f"not a camera_info file: {key} is missing ({fix})")
     size = []
     for key in ("image_width", "image_height"):
-        n = _integer(name, key, data[key])
+        n = integer(name, key, data[key])
         if n <= 0 or n > MAX_IMAGE_SIDE:
-            raise _fail(name, f"{key} must be a whole number of pixels in 1..{MAX_IMAGE_SIDE}, "
-                              f"got {_show(data[key])}")
+            raise fail(name, f"{key} must be a whole number of pixels in 1..{MAX_IMAGE_SIDE}, "
+                              f"got {show(data[key])}")
         size.append(n)
-    km = _mapping(name, "camera_matrix", data["camera_matrix"], "rows, cols, data")
+    km = mapping(name, "camera_matrix", data["camera_matrix"], "rows, cols, data")
     for key in ("rows", "cols"):
-        if key in km and _integer(name, f"camera_matrix.{key}", km[key]) != 3:
-            raise _fail(name, f"camera_matrix.{key} must be 3, got {_show(km[key])}")
+        if key in km and integer(name, f"camera_matrix.{key}", km[key]) != 3:
+            raise fail(name, f"camera_matrix.{key} must be 3, got {show(km[key])}")
     if "data" not in km:
-        raise _fail(name, "camera_matrix.data is missing (9 numbers, row-major K)")
-    k = _numbers(name, "camera_matrix.data", km["data"], (9,), "9 numbers (row-major K)")
+        raise fail(name, "camera_matrix.data is missing (9 numbers, row-major K)")
+    k = numbers(name, "camera_matrix.data", km["data"], (9,), "9 numbers (row-major K)")
     fx, skew, cx, k10, fy, cy, k20, k21, k22 = k
     if fx <= 0 or fy <= 0:
-        raise _fail(name, f"camera_matrix fx and fy must be > 0, got {fx:g} and {fy:g}")
+        raise fail(name, f"camera_matrix fx and fy must be > 0, got {fx:g} and {fy:g}")
     if k10 != 0.0 or k20 != 0.0 or k21 != 0.0 or abs(k22 - 1.0) > 1e-9:
-        raise _fail(name, "camera_matrix.data must be [fx, 0, cx, 0, fy, cy, 0, 0, 1]")
+        raise fail(name, "camera_matrix.data must be [fx, 0, cx, 0, fy, cy, 0, 0, 1]")
     if abs(skew) > 1e-9 * fx:
-        raise _fail(name, f"camera_matrix skew {skew:g} is not supported (must be 0)")
+        raise fail(name, f"camera_matrix skew {skew:g} is not supported (must be 0)")
     model = data.get("distortion_model")
     if model is not None and model not in ("plumb_bob", "rational_polynomial"):
-        raise _fail(name, f"distortion_model {_show(model)} is not supported "
+        raise fail(name, f"distortion_model {show(model)} is not supported "
                           "(use plumb_bob: k1 k2 p1 p2 k3)")
     dist: tuple[float, ...] = (0.0,) * 5
     dc = data.get("distortion_coefficients")
     if dc is not None:
-        dc = _mapping(name, "distortion_coefficients", dc, "rows, cols, data")
+        dc = mapping(name, "distortion_coefficients", dc, "rows, cols, data")
         coeffs = dc.get("data")
         if coeffs is not None and coeffs != []:
             dist = _distortion(name, "distortion_coefficients.data", coeffs)
@@ -295,10 +165,10 @@ def _camera_info(init_name: str, base_dir: Path, value: Any) -> PinholeCamera:
 
 
 def _unit_normal(name: str, value: Any) -> tuple[float, float, float]:
-    v = np.array(_numbers(name, "ground.normal", value, (3,), "a list of 3 numbers [nx, ny, nz]"))
+    v = np.array(numbers(name, "ground.normal", value, (3,), "a list of 3 numbers [nx, ny, nz]"))
     scale = float(np.max(np.abs(v)))
     if scale == 0.0:
-        raise _fail(name, "ground.normal must not be zero-length; give the unit normal "
+        raise fail(name, "ground.normal must not be zero-length; give the unit normal "
                           "pointing from the camera to the ground")
     u = v / scale
     length = float(np.linalg.norm(u)) * scale
@@ -316,52 +186,52 @@ def _region(name: str, value: Any, width: int, height: int) -> Region:
     if value is None:
         return (0, 0, width, height)
     if not isinstance(value, (list, tuple)) or len(value) != 4:
-        raise _fail(name, f"ground.region must be a list of 4 whole numbers [x0, y0, x1, y1] (px), "
-                          f"got {_show(value)}")
-    x0, y0, x1, y1 = (_integer(name, f"ground.region[{i}]", v) for i, v in enumerate(value))
+        raise fail(name, f"ground.region must be a list of 4 whole numbers [x0, y0, x1, y1] (px), "
+                          f"got {show(value)}")
+    x0, y0, x1, y1 = (integer(name, f"ground.region[{i}]", v) for i, v in enumerate(value))
     shown = f"[{x0}, {y0}, {x1}, {y1}]"
     if x0 >= x1 or y0 >= y1:
-        raise _fail(name, f"ground.region {shown} is empty or inverted (need x0 < x1 and y0 < y1)")
+        raise fail(name, f"ground.region {shown} is empty or inverted (need x0 < x1 and y0 < y1)")
     if x0 < 0 or y0 < 0 or x1 > width or y1 > height:
-        raise _fail(name, f"ground.region {shown} extends outside the {width}x{height} image "
+        raise fail(name, f"ground.region {shown} extends outside the {width}x{height} image "
                           f"(need 0 <= x0 < x1 <= {width} and 0 <= y0 < y1 <= {height})")
     fraction = (x1 - x0) * (y1 - y0) / (width * height)
     if fraction < MIN_REGION_FRACTION:
-        raise _fail(name, f"ground.region {shown} covers {100 * fraction:.2g}% of the image; "
+        raise fail(name, f"ground.region {shown} covers {100 * fraction:.2g}% of the image; "
                           f"make it at least {100 * MIN_REGION_FRACTION:g}%")
     return (x0, y0, x1, y1)
 
 
 def _ground_section(name: str, value: Any, camera: PinholeCamera) -> tuple[Plane, Region]:
-    g = _mapping(name, "ground", value, "normal + distance (or height + pitch_deg) [+ region]")
-    _check_keys(name, g, GROUND_KEYS, "ground.")
+    g = mapping(name, "ground", value, "normal + distance (or height + pitch_deg) [+ region]")
+    check_keys(name, g, GROUND_KEYS, "ground.")
     explicit = [k for k in ("normal", "distance") if k in g]
     angular = [k for k in ("height", "pitch_deg", "roll_deg") if k in g]
     if explicit and angular:
-        raise _fail(name, f"ground has both {' + '.join(explicit)} and {' + '.join(angular)}; "
+        raise fail(name, f"ground has both {' + '.join(explicit)} and {' + '.join(angular)}; "
                           "give either normal + distance or height + pitch_deg [+ roll_deg]")
     if not explicit and not angular:
-        raise _fail(name, "ground needs normal + distance, or height + pitch_deg [+ roll_deg]")
+        raise fail(name, "ground needs normal + distance, or height + pitch_deg [+ roll_deg]")
     if explicit:
         for key in ("normal", "distance"):
             if key not in g:
-                raise _fail(name, f"ground.{key} is missing (normal and distance go together)")
+                raise fail(name, f"ground.{key} is missing (normal and distance go together)")
         normal = _unit_normal(name, g["normal"])
-        distance = _positive(name, "ground.distance", g["distance"])
+        distance = positive(name, "ground.distance", g["distance"])
     else:
         for key in ("height", "pitch_deg"):
             if key not in g:
-                raise _fail(name, f"ground.{key} is missing (height and pitch_deg go together)")
-        distance = _positive(name, "ground.height", g["height"])
-        pitch = _number(name, "ground.pitch_deg", g["pitch_deg"])
+                raise fail(name, f"ground.{key} is missing (height and pitch_deg go together)")
+        distance = positive(name, "ground.height", g["height"])
+        pitch = number(name, "ground.pitch_deg", g["pitch_deg"])
         if not 0.0 < pitch < 180.0:
-            raise _fail(name, f"ground.pitch_deg must be in (0, 180) (degrees down from "
-                              f"horizontal, 90 = straight down), got {_show(g['pitch_deg'])}")
+            raise fail(name, f"ground.pitch_deg must be in (0, 180) (degrees down from "
+                              f"horizontal, 90 = straight down), got {show(g['pitch_deg'])}")
         roll = 0.0
         if g.get("roll_deg") is not None:
-            roll = _number(name, "ground.roll_deg", g["roll_deg"])
+            roll = number(name, "ground.roll_deg", g["roll_deg"])
             if not -90.0 < roll < 90.0:
-                raise _fail(name, f"ground.roll_deg must be in (-90, 90), got {_show(g['roll_deg'])}")
+                raise fail(name, f"ground.roll_deg must be in (-90, 90), got {show(g['roll_deg'])}")
         normal = normal_from_pitch_roll(pitch, roll)
     region = _region(name, g.get("region"), camera.width, camera.height)
     plane = Plane(normal, distance)
@@ -373,7 +243,7 @@ def _check_visible(name: str, camera: PinholeCamera, plane: Plane, region: Regio
     """The plane must lie in front of the camera and be hit by every ray of the region."""
     n = plane.normal
     if n[2] <= MIN_NORMAL_Z:
-        raise _fail(name, f"the ground plane is not in front of the camera (normal z = {n[2]:.3g}, "
+        raise fail(name, f"the ground plane is not in front of the camera (normal z = {n[2]:.3g}, "
                           f"must be > {MIN_NORMAL_Z:g}: the normal points from the camera to the "
                           "ground); check normal/pitch_deg")
     x0, y0, x1, y1 = region
@@ -392,18 +262,18 @@ def _check_visible(name: str, camera: PinholeCamera, plane: Plane, region: Regio
     except Exception:  # cv2.error from undistortion of absurd coefficients
         rays = np.full((len(border), 3), np.nan)
     if not np.all(np.isfinite(rays)):
-        raise _fail(name, "camera.distortion cannot be inverted over ground.region "
+        raise fail(name, "camera.distortion cannot be inverted over ground.region "
                           f"{shown}; check the distortion coefficients")
     with np.errstate(all="ignore"):
         dots = rays @ n
     worst = int(np.argmin(dots))
     u, v = int(border[worst, 0]), int(border[worst, 1])
     if not dots[worst] > MIN_RAY_DOT:
-        raise _fail(name, f"the ground plane is not visible in region {shown} (behind the camera or "
+        raise fail(name, f"the ground plane is not visible in region {shown} (behind the camera or "
                           f"parallel to the view at pixel ({u}, {v})); check normal/pitch_deg, or "
                           "set ground.region to the part of the image showing the ground")
     if dots[worst] < 1.0 / MAX_DEPTH_RATIO:
-        raise _fail(name, f"the ground plane is too oblique in region {shown}: its depth at pixel "
+        raise fail(name, f"the ground plane is too oblique in region {shown}: its depth at pixel "
                           f"({u}, {v}) is {1.0 / dots[worst]:.3g} times the plane distance "
                           f"(limit {MAX_DEPTH_RATIO:g}); check normal/pitch_deg, or move "
                           "ground.region's top edge down")
@@ -411,16 +281,16 @@ def _check_visible(name: str, camera: PinholeCamera, plane: Plane, region: Regio
 
 def _parse(data: Any, name: str, base_dir: Path) -> tuple[PinholeCamera, Plane, Region]:
     if data is None:
-        raise _fail(name, "the file is empty; it needs 'camera:' and 'ground:' sections")
+        raise fail(name, "the file is empty; it needs 'camera:' and 'ground:' sections")
     if not isinstance(data, dict):
-        raise _fail(name, f"expected a mapping with 'camera:' and 'ground:' sections, got {_show(data)}")
-    _check_keys(name, data, TOP_KEYS, "")
+        raise fail(name, f"expected a mapping with 'camera:' and 'ground:' sections, got {show(data)}")
+    check_keys(name, data, TOP_KEYS, "")
     if "camera" in data and "camera_file" in data:
-        raise _fail(name, "give either 'camera' or 'camera_file', not both")
+        raise fail(name, "give either 'camera' or 'camera_file', not both")
     if "camera" not in data and "camera_file" not in data:
-        raise _fail(name, "missing 'camera' section (or 'camera_file' naming a ROS camera_info YAML)")
+        raise fail(name, "missing 'camera' section (or 'camera_file' naming a ROS camera_info YAML)")
     if "ground" not in data:
-        raise _fail(name, "missing 'ground' section (normal + distance, or height + pitch_deg)")
+        raise fail(name, "missing 'ground' section (normal + distance, or height + pitch_deg)")
     if "camera" in data:
         camera = _camera_section(name, data["camera"])
     else:
@@ -437,8 +307,8 @@ def load_init(path: Path) -> InitConfig:
     path = Path(path)
     name = str(path)
     if path.is_dir():
-        raise _fail(name, "is a directory; expected the init.yaml file")
-    data = _read_yaml(path, name, "the init file")
+        raise fail(name, "is a directory; expected the init.yaml file")
+    data = read_yaml(path, name, "the init file")
     camera, plane, region = _parse(data, name, path.parent)
     return InitConfig(camera=camera, plane=plane, region=region, path=path)
 
@@ -452,56 +322,37 @@ def check_frame_size(cfg: InitConfig, width: int, height: int, frame_path: Path)
                           "camera that took them")
 
 
-def _yaml_float(x: float) -> str:
-    """A float as a YAML 1.1 float literal that round-trips exactly (1e-20 -> 1.0e-20)."""
-    s = repr(float(x))
-    if "e" in s:
-        mantissa, exponent = s.split("e")
-        if "." not in mantissa:
-            mantissa += ".0"
-        if exponent[0] not in "+-":
-            exponent = "+" + exponent
-        s = f"{mantissa}e{exponent}"
-    elif "." not in s:
-        s += ".0"
-    return s
-
-
-def _flow(values, fmt) -> str:
-    return "[" + ", ".join(fmt(v) for v in values) + "]"
-
-
 def dump_init(path: Path, camera: PinholeCamera, plane: Plane, region: Region | None = None) -> None:
     """Write ``camera``, the ground ``plane`` and ``region`` (None: the whole frame) as an
     init.yaml (docs/guide.md "File formats", the normal + distance form), atomically.
     Raises ConfigError, writing nothing, if they would not load back."""
     path = Path(path)
     name = str(path)
-    numbers = [camera.fx, camera.fy, camera.cx, camera.cy, *camera.distortion,
+    values = [camera.fx, camera.fy, camera.cx, camera.cy, *camera.distortion,
                *plane.normal, plane.distance]
     try:
-        finite = all(math.isfinite(float(v)) for v in numbers)
+        finite = all(math.isfinite(float(v)) for v in values)
     except (TypeError, ValueError, OverflowError):
         finite = False
     if not finite:
-        raise _fail(name, "cannot write a camera or ground plane with non-numeric or non-finite values")
+        raise fail(name, "cannot write a camera or ground plane with non-numeric or non-finite values")
     lines = [
         "# monovo initial-pose file: camera intrinsics and the ground plane at frame 0",
         "camera:",
         f"  width: {int(camera.width)}",
         f"  height: {int(camera.height)}",
-        f"  fx: {_yaml_float(camera.fx)}",
-        f"  fy: {_yaml_float(camera.fy)}",
-        f"  cx: {_yaml_float(camera.cx)}",
-        f"  cy: {_yaml_float(camera.cy)}",
-        f"  distortion: {_flow(camera.distortion, _yaml_float)}",
+        f"  fx: {yaml_float(camera.fx)}",
+        f"  fy: {yaml_float(camera.fy)}",
+        f"  cx: {yaml_float(camera.cx)}",
+        f"  cy: {yaml_float(camera.cy)}",
+        f"  distortion: {flow_list(camera.distortion, yaml_float)}",
         "ground:",
-        f"  normal: {_flow(plane.normal, _yaml_float)}",
-        f"  distance: {_yaml_float(plane.distance)}",
+        f"  normal: {flow_list(plane.normal, yaml_float)}",
+        f"  distance: {yaml_float(plane.distance)}",
     ]
     if region is not None:
-        lines.append(f"  region: {_flow(region, lambda v: str(int(v)))}")
+        lines.append(f"  region: {flow_list(region, lambda v: str(int(v)))}")
     text = "\n".join(lines) + "\n"
     # Validate exactly what will be read back.
-    _parse(yaml.load(text, Loader=_UniqueKeyLoader), name, path.parent)
+    _parse(yaml.load(text, Loader=UniqueKeyLoader), name, path.parent)
     atomic_write_text(path, text)
