@@ -203,7 +203,7 @@ def drive_arguments(doc: str | None):
 
 def _points(value: str) -> int:
     if value.strip().lower() == "all":
-        from monovo_cli.core.odometry import ALL_POINTS
+        from monovo_cli.core.options import ALL_POINTS
 
         return ALL_POINTS
     return int(value)
@@ -234,7 +234,7 @@ def options_note(args) -> str:
     mp = getattr(args, "max_points", None)
     if mp is None:
         return "default options"
-    from monovo_cli.core.odometry import ALL_POINTS
+    from monovo_cli.core.options import ALL_POINTS
 
     return f"default options but `--max-points {'all' if mp >= ALL_POINTS else mp}`"
 

@@ -16,13 +16,12 @@ import click
 import pytest
 from click.testing import CliRunner
 
-import monovo_cli.core.odometry as odometry
+import monovo_cli.core.options as core_options
 import monovo_cli.pipeline.batch as batch
 import monovo_cli.pipeline.track as track
 from monovo_cli.cli import main
 from monovo_cli.core.estimate import EstimatorOptions
-from monovo_cli.core.odometry import ALL_POINTS, TrackOptions
-from monovo_cli.core.options import options_from_dict
+from monovo_cli.core.options import ALL_POINTS, TrackOptions, options_from_dict
 from monovo_cli.pipeline.batch_job import job_options, normalize_options
 
 ALL_GIVEN = ["--levels", "3", "--threshold", "5", "--max-points", "all", "--robust", "tukey",
@@ -41,8 +40,8 @@ def calls(monkeypatch):
         seen["track"] = (options, kw)
         return SimpleNamespace()  # with -q the command prints nothing of it
 
-    def fake_init(seq, params, out, options):
-        seen["init"] = (options, {})
+    def fake_init(seq, params, out, options, **kw):
+        seen["init"] = (options, kw)
         raise click.exceptions.Exit(0)  # the command would print the model's levels
 
     def fake_batch(root, out, options, **kw):
@@ -110,7 +109,7 @@ def test_help_reads_the_defaults_from_the_library(monkeypatch):
         reanchor_fraction: float = 0.45
         pixels_per_point: int = 3
 
-    monkeypatch.setattr(odometry, "TrackOptions", Changed)
+    monkeypatch.setattr(core_options, "TrackOptions", Changed)
     r = CliRunner().invoke(main, ["batch", "--help"], terminal_width=200)
     assert "[default: 0.45; 0.0<=x<1.0]" in r.output and "one per 3 pixels" in r.output
 

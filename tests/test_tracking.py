@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from monovo_cli.core.ground import barycentric
-from monovo_cli.core.odometry import TrackOptions, build_keyframe, track
+from monovo_cli.core.keyframe import build_keyframe
+from monovo_cli.core.odometry import TrackOptions, track
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.lie import se3_inv, so3_log
 from monovo_cli.io.config import load_init

@@ -130,7 +130,7 @@ class MaxPoints(click.ParamType):
     def convert(self, value, param, ctx):
         if isinstance(value, int):
             return value
-        from monovo_cli.core.odometry import ALL_POINTS, TrackOptions
+        from monovo_cli.core.options import ALL_POINTS, TrackOptions
 
         if str(value).strip().lower() == "all":
             return ALL_POINTS
@@ -189,7 +189,7 @@ def given(**values: Any) -> dict[str, Any]:
 
 def track_default(field: str) -> Any:
     """The default of the TrackOptions field ``field`` (dotted: ``estimator.robust``)."""
-    from monovo_cli.core.odometry import TrackOptions
+    from monovo_cli.core.options import TrackOptions
 
     value = TrackOptions()
     for part in field.split("."):
@@ -217,8 +217,7 @@ class TrackOption(LibraryDefault):
 def build_track_options(values: dict[str | tuple[str, ...], Any]):
     """TrackOptions from ``{field: value}`` of :class:`TrackOption` s: the values given (not
     None), the dataclass defaults for the rest."""
-    from monovo_cli.core.odometry import TrackOptions
-    from monovo_cli.core.options import options_from_dict
+    from monovo_cli.core.options import TrackOptions, options_from_dict
 
     nested: dict[str, Any] = {}
     for field, value in values.items():

@@ -7,29 +7,30 @@ Each frame is estimated against the current keyframe (the paper's ground model, 
 the accumulated motion), so drift grows per keyframe, not per frame. A new keyframe is
 anchored on the current frame when too few of the keyframe's points stay in view or the
 model covers too little of the image; at that moment the plane is re-estimated from the two
-images with the mounting pose as a prior (:mod:`monovo_cli.core.plane_fit`). A frame whose estimate
-fails the divergence checks is marked ``lost``, carries the constant-velocity prediction,
-and the model is re-anchored on the next good frame.
+images with the mounting pose as a prior (:mod:`monovo_cli.core.plane_fit`). A frame whose
+estimate fails the divergence checks is marked ``lost``, carries the constant-velocity
+prediction, and the model is re-anchored on the next good frame (:class:`OdometryState`).
+
+The ground model itself is built by :mod:`monovo_cli.core.keyframe`; the settings are
+:class:`~monovo_cli.core.options.TrackOptions`.
 """
 
 from __future__ import annotations
 
 from collections import deque
 from collections.abc import Iterable, Iterator, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from enum import Enum
 
-import cv2
 import numpy as np
 
 from monovo_cli.core.estimate import (
     Estimate,
-    EstimatorOptions,
-    KeyLevel,
     coarse_search,
     estimate_motion,
 )
-from monovo_cli.core.ground import default_threshold, rectangle_corners, require_points, select_points
+from monovo_cli.core.keyframe import Keyframe, build_keyframe, footprint
+from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane_fit import PlanePrior, refine_plane_and_motion
 from monovo_cli.core.robust import inlier_fraction
 from monovo_cli.core.status import FrameStatus
@@ -38,58 +39,7 @@ from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import orthonormalize, se3_inv, skew, so3_log
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.image.gradients import estimate_noise_sigma
-from monovo_cli.image.pyramid import build_pyramid, num_levels
-
-
-@dataclass(frozen=True)
-class TrackOptions:
-    """Tracking settings.
-
-    ``threshold`` is the paper's delta_1 (Sobel magnitude, grey levels/px; None: from the
-    keyframe's noise); ``max_points`` caps the finest level's observation points (None: one
-    per ``pixels_per_point`` pixels of the image, the strongest gradients spread evenly);
-    coarser levels, which only bring the estimate within reach of the finest, get one per
-    ``coarse_pixels_per_point`` full-resolution pixels (a quarter per level). With a motion
-    prediction, estimation starts at pyramid level ``predicted_top_level`` instead of the top
-    (the prediction is within a pixel or two).
-    Re-anchor when fewer than ``reanchor_fraction`` of the keyframe's points stay in view
-    or the model covers < ``min_footprint`` of the image.
-    A frame is lost when fewer than ``min_inliers`` of its points agree within the noise,
-    its msd exceeds ``msd_factor`` times the recent median, the normal matrix's condition
-    number exceeds ``max_condition``, the finest level hits the iteration cap, or its motion
-    exceeds ``max_step_m`` / ``max_step_deg``.
-    """
-
-    levels: int | None = None
-    threshold: float | None = None
-    max_points: int | None = None
-    pixels_per_point: int = 2
-    coarse_pixels_per_point: int = 16
-    predicted_top_level: int = 2
-    min_points: int = 50
-    reanchor_fraction: float = 0.6
-    min_footprint: float = 0.2
-    min_inliers: float = 0.3
-    msd_factor: float = 6.0
-    max_condition: float = 1e7
-    max_step_m: float | None = None
-    max_step_deg: float | None = None
-    plane_prior_deg: float = 2.0
-    distance_pull: float = 0.1
-    estimator: EstimatorOptions = field(default_factory=EstimatorOptions)
-
-
-@dataclass(frozen=True)
-class Keyframe:
-    """A ground model anchored on one frame: plane and points in that frame's camera."""
-
-    index: int
-    world_from_key: np.ndarray
-    plane: Plane
-    corners: np.ndarray
-    levels: tuple[KeyLevel, ...]
-    noise_sigma: float
-    threshold: float
+from monovo_cli.image.pyramid import build_pyramid
 
 
 @dataclass(frozen=True)
@@ -117,69 +67,7 @@ class FrameResult:
     reason: str = ""
 
 
-def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: Plane,
-                   region: tuple[int, int, int, int], world_from_key: np.ndarray,
-                   options: TrackOptions, *, mask: np.ndarray | None = None,
-                   pyramid: list[np.ndarray] | None = None) -> Keyframe:
-    """The ground model of section 10.2.5 on ``image`` (H, W) float32, plane in its camera.
-
-    Raises TrackingError when the frame has too few observation points.
-    """
-    n_levels = options.levels or num_levels(camera.width, camera.height)
-    pyr = pyramid if pyramid is not None and len(pyramid) >= n_levels \
-        else build_pyramid(image, n_levels)
-    sigma = estimate_noise_sigma(image)
-    threshold = options.threshold if options.threshold is not None else default_threshold(sigma)
-    corners = rectangle_corners(camera, plane, region)
-    budget = point_budget(options, camera)
-    coarse = min(budget, _one_point_per(options.coarse_pixels_per_point, camera))
-    spline = options.estimator.interpolation != "linear"
-    if not np.all(np.isfinite(corners)) or np.any(corners[:, 2] <= 0):
-        raise TrackingError("the ground plane is not in front of the camera over the region")
-    levels = []
-    m = mask
-    for lv in range(n_levels):
-        cam = camera.scaled(lv)
-        if lv > 0 and m is not None:
-            m = cv2.resize(m.astype(np.uint8), (cam.width, cam.height),
-                           interpolation=cv2.INTER_NEAREST).astype(bool)
-        pts = select_points(pyr[lv], cam, plane, corners, level=lv, threshold=threshold,
-                            max_points=max((budget if lv == 0 else coarse) // (4 ** lv), 200),
-                            mask=m, spline=lv == 0 and spline)
-        if lv == 0:
-            require_points(pts, minimum=options.min_points, threshold=threshold)
-        levels.append(KeyLevel.from_points(pts))
-    # Coarse levels with too few points cannot constrain 6 DoF: drop them.
-    while len(levels) > 1 and len(levels[-1].points) < 30:
-        levels.pop()
-    return Keyframe(index, np.array(world_from_key), plane, corners, tuple(levels), sigma, threshold)
-
-
-ALL_POINTS = 1 << 30  # max_points meaning "no cap" (`--max-points all`)
 NOISE_CAP = 12.0  # grey levels: the most current-frame noise the loss checks allow for
-
-
-def _one_point_per(pixels: int, camera: PinholeCamera) -> int:
-    """One point per ``pixels`` pixels of the image, at least 2000."""
-    return int(max(2000, camera.width * camera.height // pixels))
-
-
-def point_budget(options: TrackOptions, camera: PinholeCamera) -> int:
-    """Observation points at full resolution: ``max_points`` or one per ``pixels_per_point`` px."""
-    if options.max_points is not None:
-        return int(options.max_points)
-    return _one_point_per(options.pixels_per_point, camera)
-
-
-def footprint(camera: PinholeCamera, corners_cur: np.ndarray) -> float:
-    """Share of the image covered by the model rectangle (4, 3) given in the current camera."""
-    if np.any(corners_cur[:, 2] <= 1e-6):
-        return 0.0
-    poly = camera.project(corners_cur).astype(np.float32)
-    img = np.array([[0, 0], [camera.width, 0], [camera.width, camera.height], [0, camera.height]],
-                   np.float32)
-    area, _ = cv2.intersectConvexConvex(poly, img)
-    return float(area) / (camera.width * camera.height)
 
 
 def adjoint(T: np.ndarray) -> np.ndarray:

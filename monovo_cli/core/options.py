@@ -1,19 +1,61 @@
-"""Options dataclasses from plain (JSON-able) dicts, the inverse of :func:`dataclasses.asdict`.
+"""The tracking options, and options dataclasses from plain (JSON-able) dicts.
 
-:class:`~monovo_cli.core.odometry.TrackOptions` (with the
-:class:`~monovo_cli.core.estimate.EstimatorOptions` it nests) is the one place where a
-tracking default is written. The command line builds it from the options the user gave;
-``monovo batch`` sends it to its workers as ``dataclasses.asdict(options)`` and rebuilds it
-there with :func:`options_from_dict`.
+:class:`TrackOptions` (with the :class:`~monovo_cli.core.estimate.EstimatorOptions` it
+nests) is the one place where a tracking default is written. The command line builds it
+from the options the user gave; ``monovo batch`` sends it to its workers as
+``dataclasses.asdict(options)`` and rebuilds it there with :func:`options_from_dict`.
 """
 
 from __future__ import annotations
 
 import dataclasses
 from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
+from monovo_cli.core.estimate import EstimatorOptions
+
 T = TypeVar("T")
+
+ALL_POINTS = 1 << 30  # max_points meaning "no cap" (`--max-points all`)
+
+
+@dataclass(frozen=True)
+class TrackOptions:
+    """Tracking settings.
+
+    ``threshold`` is the paper's delta_1 (Sobel magnitude, grey levels/px; None: from the
+    keyframe's noise); ``max_points`` caps the finest level's observation points (None: one
+    per ``pixels_per_point`` pixels of the image, the strongest gradients spread evenly);
+    coarser levels, which only bring the estimate within reach of the finest, get one per
+    ``coarse_pixels_per_point`` full-resolution pixels (a quarter per level). With a motion
+    prediction, estimation starts at pyramid level ``predicted_top_level`` instead of the top
+    (the prediction is within a pixel or two).
+    Re-anchor when fewer than ``reanchor_fraction`` of the keyframe's points stay in view
+    or the model covers < ``min_footprint`` of the image.
+    A frame is lost when fewer than ``min_inliers`` of its points agree within the noise,
+    its msd exceeds ``msd_factor`` times the recent median, the normal matrix's condition
+    number exceeds ``max_condition``, the finest level hits the iteration cap, or its motion
+    exceeds ``max_step_m`` / ``max_step_deg``.
+    """
+
+    levels: int | None = None
+    threshold: float | None = None
+    max_points: int | None = None
+    pixels_per_point: int = 2
+    coarse_pixels_per_point: int = 16
+    predicted_top_level: int = 2
+    min_points: int = 50
+    reanchor_fraction: float = 0.6
+    min_footprint: float = 0.2
+    min_inliers: float = 0.3
+    msd_factor: float = 6.0
+    max_condition: float = 1e7
+    max_step_m: float | None = None
+    max_step_deg: float | None = None
+    plane_prior_deg: float = 2.0
+    distance_pull: float = 0.1
+    estimator: EstimatorOptions = field(default_factory=EstimatorOptions)
 
 
 def options_from_dict(cls: type[T], data: Mapping[str, Any]) -> T:

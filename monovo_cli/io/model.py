@@ -13,7 +13,7 @@ from monovo_cli.io.atomic import atomic_write_bytes
 
 
 def save_model(path: Path, keyframe, camera, region) -> None:
-    """Save a ground model (a :class:`~monovo_cli.core.odometry.Keyframe`) of ``camera`` and
+    """Save a ground model (a :class:`~monovo_cli.core.keyframe.Keyframe`) of ``camera`` and
     ``region`` (x0, y0, x1, y1 px) to ``model.npz`` atomically."""
     path = Path(path)
     arrays = {
@@ -40,11 +40,11 @@ def save_model(path: Path, keyframe, camera, region) -> None:
 def load_model(path: Path):
     """Load ``model.npz``: returns ``(camera, region, keyframe)``, a
     :class:`~monovo_cli.geometry.camera.PinholeCamera`, the region (x0, y0, x1, y1) px and the
-    frame-0 :class:`~monovo_cli.core.odometry.Keyframe`. InputError when the file is not a
+    frame-0 :class:`~monovo_cli.core.keyframe.Keyframe`. InputError when the file is not a
     model or is damaged."""
     from monovo_cli.core.estimate import KeyLevel
     from monovo_cli.core.ground import LevelPoints
-    from monovo_cli.core.odometry import Keyframe
+    from monovo_cli.core.keyframe import Keyframe
     from monovo_cli.geometry.camera import PinholeCamera
     from monovo_cli.geometry.plane import Plane
 

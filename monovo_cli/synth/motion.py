@@ -1,4 +1,5 @@
-"""Camera motions of the synthetic sequences: a rover drive and the paper's pairs.
+"""Camera motions of the synthetic sequences: a rover drive, the paper's pairs, rover drives
+over terrain (smooth or MER-like stop-and-go paths, wheels on the ground, suspension bobbing).
 """
 
 from __future__ import annotations
@@ -122,3 +123,129 @@ def pair_poses(cam: PinholeCamera, rng: np.random.Generator, *, max_translation:
             return g0, g1
     raise InputError(f"max_rotation_deg {max_rotation_deg:g}, max_translation {max_translation:g}: "
                      "motions this large keep showing the horizon in frame 1")
+
+
+# --------------------------------------------------------------------------- rover drives over terrain
+
+TERRAIN_PITCH_DEG = 40.0  # camera pitch of the terrain drives (issue 14.2)
+ROVER_WHEELBASE = 1.4  # m, front to rear wheel contacts (a MER-sized rover)
+ROVER_TRACK = 1.2  # m, left to right wheel contacts
+ROVER_MAST_FORWARD = 0.4  # m, the mast ahead of the rover's centre (the turning centre)
+BOB_HEIGHT = 0.02  # m, suspension bobbing of the body
+BOB_TILT_DEG = 2.0  # pitch and roll bobbing of the body
+
+# MER visual odometry: a frame every ~75 cm of driving or ~18 deg of turn (Maimone et al., 2007)
+MER_STEP = (0.6, 0.75)  # m of driving between frames
+MER_TURN_DEG = (12.0, 18.0)  # turn in place between frames
+MER_ARC_DEG = 3.0  # heading change per driving step, at most (the runs are arcs)
+MER_RUN = (3, 8)  # driving steps between turns
+MER_TURNS = (1, 3)  # turn frames in a row
+MER_PITCH_DEG = 45.0
+MER_FOV_DEG = 45.0  # horizontal field of view of the Navcam
+
+
+def drive_path(n_frames: int, rng: np.random.Generator, *, peak_step: float,
+               origin: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+    """``(n, 3)`` rover centre ``x, y`` (m, in G) and heading (rad from G's x axis) of a
+    smooth drive: the speed and turns of :func:`drive_poses`, without the body's wobble."""
+    speed = (peak_step / (1.0 + DRIVE_SPEED_VARIATION)) * (
+        1.0 + DRIVE_SPEED_VARIATION * _smooth(rng, n_frames, (40.0, 250.0)))
+    bias = rng.uniform(-1.0, 1.0)
+    yaw_rate = math.radians(DRIVE_MAX_YAW_RATE_DEG) * (
+        0.4 * bias + 0.6 * _smooth(rng, n_frames, (60.0, 400.0)))
+    heading = rng.uniform(0.0, 2.0 * np.pi)
+    pos = np.array(origin, dtype=float)
+    path = np.zeros((n_frames, 3))
+    for k in range(n_frames):
+        if k > 0:
+            mid = heading + 0.5 * yaw_rate[k]
+            pos = pos + speed[k] * np.array([math.cos(mid), math.sin(mid)])
+            heading += yaw_rate[k]
+        path[k] = pos[0], pos[1], heading
+    return path
+
+
+def mer_path(n_frames: int, rng: np.random.Generator,
+             origin: tuple[float, float] = (0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
+    """A MER-like stop-and-go drive: runs of ``MER_RUN`` steps of ``MER_STEP`` m (arcs
+    turning up to ``MER_ARC_DEG`` per step) and turns in place of ``MER_TURN_DEG`` per frame.
+
+    Returns ``(n, 3)`` rover centre ``x, y`` (m) and heading (rad), and ``(n,)`` bool:
+    frame k was reached by turning in place (else by driving; frame 0: False)."""
+    heading = rng.uniform(0.0, 2.0 * np.pi)
+    pos = np.array(origin, dtype=float)
+    path, turning = [(pos[0], pos[1], heading)], [False]
+    while len(path) < n_frames:
+        arc = math.radians(rng.uniform(-MER_ARC_DEG, MER_ARC_DEG))
+        for _ in range(int(rng.integers(MER_RUN[0], MER_RUN[1] + 1))):
+            mid = heading + 0.5 * arc
+            pos = pos + rng.uniform(*MER_STEP) * np.array([math.cos(mid), math.sin(mid)])
+            heading += arc
+            path.append((pos[0], pos[1], heading))
+            turning.append(False)
+        sign = rng.choice([-1.0, 1.0])
+        for _ in range(int(rng.integers(MER_TURNS[0], MER_TURNS[1] + 1))):
+            heading += sign * math.radians(rng.uniform(*MER_TURN_DEG))
+            path.append((pos[0], pos[1], heading))
+            turning.append(True)
+    return np.array(path[:n_frames]), np.array(turning[:n_frames])
+
+
+def _crest(rng: np.random.Generator, n: int, periods: tuple[float, float], count: int = 3
+           ) -> np.ndarray:
+    """A smooth random signal in [-1, 1] over frames 0..n-1 at a crest (+1 or -1) at frame 0."""
+    k = np.arange(n, dtype=float)
+    omega = 2.0 * np.pi / rng.uniform(periods[0], periods[1], count)
+    amp = rng.uniform(0.5, 1.0, count)
+    amp /= amp.sum()
+    return rng.choice([-1.0, 1.0]) * (amp[None, :] * np.cos(omega[None, :] * k[:, None])).sum(axis=1)
+
+
+def bobbing(n_frames: int, rng: np.random.Generator, periods: tuple[float, float]) -> np.ndarray:
+    """``(n, 3)`` suspension bobbing of the body per frame: height (m, +-BOB_HEIGHT), pitch
+    and roll (rad, +-BOB_TILT_DEG); periods in frames. Frame 0 is at a crest of all three,
+    as far from the mean as the bobbing goes."""
+    tilt = math.radians(BOB_TILT_DEG)
+    return np.column_stack([BOB_HEIGHT * _crest(rng, n_frames, periods),
+                            tilt * _crest(rng, n_frames, periods),
+                            tilt * _crest(rng, n_frames, periods)])
+
+
+def camera_mount(pitch_deg: float, mast_height: float = DRIVE_MAST_HEIGHT,
+                 forward: float = ROVER_MAST_FORWARD) -> np.ndarray:
+    """``body_from_cam`` (4x4): the camera ``forward`` m ahead of the rover's centre,
+    ``mast_height`` m above its ground plane, pitched ``pitch_deg`` down."""
+    return make_pose(body_from_camera(math.radians(pitch_deg)),
+                     np.array([forward, 0.0, mast_height]))
+
+
+def body_on_ground(path: np.ndarray, height_at) -> list[np.ndarray]:
+    """``g_from_body`` (4x4) per frame: the plane fitted (least squares) to the ground under
+    the four wheel contacts (wheelbase ROVER_WHEELBASE, track ROVER_TRACK) of the rover at
+    ``path`` (n, 3); body x = the heading in that plane, z = its normal (up), origin on the
+    plane under the rover's centre. ``height_at(x, y)`` (arrays, m) gives the ground."""
+    s = 0.5 * ROVER_WHEELBASE * np.array([1.0, 1.0, -1.0, -1.0])
+    q = 0.5 * ROVER_TRACK * np.array([1.0, -1.0, 1.0, -1.0])
+    fit = np.linalg.pinv(np.column_stack([np.ones(4), s, q]))  # z = c0 + c1 s + c2 q
+    poses = []
+    for x, y, h in path:
+        f = np.array([math.cos(h), math.sin(h)])
+        left = np.array([-f[1], f[0]])
+        wheels = np.array([x, y])[None, :] + s[:, None] * f[None, :] + q[:, None] * left[None, :]
+        c0, c1, c2 = fit @ height_at(wheels[:, 0], wheels[:, 1])
+        grad = c1 * f + c2 * left
+        z = np.array([-grad[0], -grad[1], 1.0]) / math.hypot(grad[0], grad[1], 1.0)
+        fwd = np.array([f[0], f[1], 0.0])
+        xb = fwd - (fwd @ z) * z
+        xb /= np.linalg.norm(xb)
+        poses.append(make_pose(np.column_stack([xb, np.cross(z, xb), z]), np.array([x, y, c0])))
+    return poses
+
+
+def rover_poses(path: np.ndarray, height_at, bob: np.ndarray, mount: np.ndarray
+                ) -> list[np.ndarray]:
+    """``g_from_cam_k``: the body on the ground under the wheels (:func:`body_on_ground`),
+    bobbing by ``bob`` (n, 3) (height along the body's z, pitch about its y, roll about its
+    x, about its origin), the camera at ``mount`` (``body_from_cam``) on it."""
+    return [g_from_body @ make_pose(_rot_y(b[1]) @ _rot_x(b[2]), np.array([0.0, 0.0, b[0]])) @ mount
+            for g_from_body, b in zip(body_on_ground(path, height_at), bob)]

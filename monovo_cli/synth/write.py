@@ -28,6 +28,15 @@ Presets:
 * ``pairs`` -- the paper's experiment: camera 100 m from the plane, optical axis 25 deg
   (+- 5 deg) off the plane normal, one random motion per pair (rotation +-5 deg and
   translation +-10 m per axis); one 2-frame sequence per pair in ``pair_NNNN/``.
+* ``mer`` -- MER visual odometry's spacing: 0.6-0.75 m steps and 12-18 deg turns in place,
+  a 1024x1024 camera with a 45 deg field of view on a 1.5 m mast pitched 45 deg down.
+
+With ``terrain=`` (always for ``mer``) the drive goes over a height field instead of the
+plane (:mod:`~monovo_cli.synth.terrain`), rendered by ray casting
+(:mod:`~monovo_cli.synth.raycast`); the rover's body lies on the ground under its wheels
+and bobs (:mod:`~monovo_cli.synth.rover`); the ``drive`` camera is then pitched 40 deg.
+init.yaml gets the nominal plane (the body's, seen from the mounting) and ``terrain.npz``
+the true height field.
 """
 
 from __future__ import annotations
@@ -46,14 +55,16 @@ from monovo_cli.errors import InputError, OutputError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import make_pose, se3_inv
 from monovo_cli.geometry.plane import Plane
-from monovo_cli.io.atomic import atomic_write_text
+from monovo_cli.io.atomic import atomic_write_bytes, atomic_write_text
 from monovo_cli.io.config import dump_init
 from monovo_cli.io.formats import FrameStatus, MotionRow, fmt, motion_csv_text, tum_text
+from monovo_cli.synth.gravel import gravel_texture
 from monovo_cli.synth.motion import (
     DRIVE_MAST_HEIGHT,
     DRIVE_PITCH_DEG,
     DRIVE_SPEED_VARIATION,
     DRIVE_STEP,
+    MER_STEP,
     PAIR_DISTANCE,
     PAIR_EXTRA_TILT_DEG,
     PAIR_MAX_TRANSLATION,
@@ -63,6 +74,7 @@ from monovo_cli.synth.motion import (
     drive_poses,
     pair_poses,
 )
+from monovo_cli.synth.raycast import TERRAIN_SUPERSAMPLE, TerrainRenderer
 from monovo_cli.synth.render import (
     SUPERSAMPLE,
     GroundRenderer,
@@ -74,6 +86,8 @@ from monovo_cli.synth.render import (
     pixel_size_on_plane,
     plane_homography,
 )
+from monovo_cli.synth.rover import MER_FRAMES, MER_SIZE, mer_camera, rover_mount, rover_scene
+from monovo_cli.synth.terrain import TERRAINS, terrain_npz_bytes
 from monovo_cli.synth.texture import (
     TEXTURE_MEAN,
     TEXTURE_STD,
@@ -83,7 +97,12 @@ from monovo_cli.synth.texture import (
     procedural_texture_size,
 )
 
-PRESETS = ("drive", "pairs")
+PRESETS = ("drive", "pairs", "mer")
+TEXTURES = ("procedural", "gravel")  # built-in names of texture=
+NOMINAL_PLANE_NOTE = (
+    "# The ground plane below is the nominal one, as the rover knows it from its mounting: the\n"
+    "# plane of its wheels at frame 0 seen from the camera's mounting (mast height and pitch),\n"
+    "# not the true local ground (suspension bobbing and terrain differ; see terrain.npz).\n")
 MIN_SIZE = 32
 MAX_SIZE = 8192
 
@@ -104,14 +123,16 @@ class SynthSummary:
 
 def _write_sequence(seq_dir: Path, cam: PinholeCamera, poses: list[np.ndarray],
                     region: list[int], params: dict,
-                    photometric: list[tuple[float, float]] | None) -> None:
+                    photometric: list[tuple[float, float]] | None,
+                    plane_pose: np.ndarray | None = None) -> None:
     """init.yaml, ground truth, synth.yaml (+ photometric.csv) of one sequence; frames are
-    written by the caller as they are rendered."""
+    written by the caller as they are rendered. init.yaml's plane is ``z_G = 0`` seen from
+    ``plane_pose`` (default: ``poses[0]``)."""
     inv0 = se3_inv(poses[0])
     traj = [np.eye(4)] + [inv0 @ g for g in poses[1:]]
     rows = [MotionRow(frame=k, prev_from_cur=se3_inv(poses[k - 1]) @ poses[k], msd=0.0,
                       iterations=0, points=0, status=FrameStatus.OK) for k in range(1, len(poses))]
-    n, d = ground_in_camera(poses[0])
+    n, d = ground_in_camera(poses[0] if plane_pose is None else plane_pose)
     dump_init(seq_dir / "init.yaml", cam, Plane(n + 0.0, d), tuple(region))  # (+ 0.0: no -0.0)
     atomic_write_text(seq_dir / "groundtruth.tum", tum_text([float(k) for k in range(len(poses))],
                                                             traj))
@@ -157,14 +178,22 @@ def _check_number(name: str, value, *, low: float, high: float = math.inf,
 
 def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = None,
                size: tuple[int, int] | None = None, noise_var: float = 10.0, seed: int = 0,
-               texture: Path | None = None, max_translation: float | None = None,
+               texture: Path | str | None = None, max_translation: float | None = None,
                max_rotation_deg: float = 5.0, exposure: bool = False, shadow: float = 0.0,
-               low_texture: bool = False, clean_frame0: bool = False,
+               low_texture: bool = False, clean_frame0: bool = False, terrain: str | None = None,
                progress: Callable[[int, int], None] | None = None) -> SynthSummary:
-    """Write a synthetic sequence (``drive``) or set of 2-frame sequences (``pairs``).
+    """Write a synthetic sequence (``drive``, ``mer``) or set of 2-frame sequences (``pairs``).
 
-    ``frames``: frames of the drive (default 300) or number of pairs (default 100).
-    ``size``: ``(width, height)`` px (default 512x512 drive, 688x544 pairs).
+    ``frames``: frames of the drive (default 300; mer 100) or number of pairs (default 100).
+    ``size``: ``(width, height)`` px (default 512x512 drive, 1024x1024 mer, 688x544 pairs).
+    ``texture``: an image file (a Path, or a str not in TEXTURES), or a built-in texture
+    name (``procedural``, the default, or ``gravel``).
+    ``terrain``: drive over a height field (one of TERRAINS) rendered by ray casting, the
+    body on the ground under its wheels and bobbing (monovo_cli.synth.rover, .raycast); the
+    drive's camera is then pitched 40 deg. ``mer``: MER-like 0.6-0.75 m steps and 12-18 deg
+    turns in place, a 45 deg field of view pitched 45 deg, over ``terrain`` (default flat).
+    With a terrain, init.yaml holds the nominal plane (the body's, seen from the mounting)
+    and terrain.npz the true height field.
     ``max_translation``: pairs -- per-axis translation bound, m (default 10);
     drive -- peak forward step per frame, m (default 0.065 = 0.05 * 1.3).
     ``max_rotation_deg``: pairs -- per-axis bound of the rotation vector, degrees; the
@@ -183,13 +212,24 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
     out_dir = Path(out_dir)
     if preset not in PRESETS:
         raise InputError(f"--preset {preset!r}: unknown preset, choose one of {', '.join(PRESETS)}")
-    drive = preset == "drive"
+    drive = preset != "pairs"
+    rover = preset == "mer" or terrain is not None
+    if rover and not drive:
+        raise InputError("--terrain: only the drive and mer presets drive over terrain")
+    if rover and terrain is None:
+        terrain = "flat"
+    if rover and terrain not in TERRAINS:
+        raise InputError(f"--terrain {terrain!r}: unknown terrain, choose one of {', '.join(TERRAINS)}")
+    if preset == "mer" and max_translation is not None:
+        raise InputError("--max-translation: the mer preset's steps are fixed (0.6-0.75 m)")
+    if preset == "mer":
+        max_translation = MER_STEP[1]  # (recorded in synth.yaml; the steps are mer_path's)
     if frames is None:
-        frames = 300 if drive else 100
+        frames = {"drive": 300, "mer": MER_FRAMES}.get(preset, 100)
     _check_number("--frames", frames, low=2 if drive else 1, integer=True)
     frames = int(frames)
     if size is None:
-        size = (512, 512) if drive else (688, 544)
+        size = {"drive": (512, 512), "mer": MER_SIZE}.get(preset, (688, 544))
     if (not isinstance(size, (tuple, list)) or len(size) != 2
             or not all(isinstance(v, (int, np.integer)) and not isinstance(v, bool) for v in size)):
         raise InputError(f"--size {size!r}: must be two whole numbers WIDTHxHEIGHT")
@@ -212,12 +252,15 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
         if any(out_dir.iterdir()):
             raise OutputError(f"{out_dir}: already exists and is not empty")
 
-    cam = default_camera(width, height)
+    cam = mer_camera(width, height) if preset == "mer" else default_camera(width, height)
     ss = np.random.SeedSequence(seed)
-    motion_rng, noise_rng, photo_rng = (np.random.default_rng(s) for s in ss.spawn(3))
+    motion_rng, noise_rng, photo_rng, terrain_rng, bob_rng = (
+        np.random.default_rng(s) for s in ss.spawn(5))  # (the first three as ever)
 
     # Texture scale: a texel is ~0.85 px at the nearest visible ground of the nominal view.
-    if drive:
+    if rover:
+        nominal = rover_mount(preset)  # the body's plane is z = 0
+    elif drive:
         nominal = make_pose(body_from_camera(math.radians(DRIVE_PITCH_DEG)),
                             np.array([0.0, 0.0, DRIVE_MAST_HEIGHT]))
     else:
@@ -225,12 +268,16 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
                             np.array([0.0, 0.0, PAIR_DISTANCE]))
     x, y = _grid(width, height)
     metres_per_texel = 0.85 * float(np.min(pixel_size_on_plane(plane_homography(cam, nominal), x, y)))
-    if texture is not None:
+    if texture is None or (isinstance(texture, str) and texture in TEXTURES):
+        n_tex = procedural_texture_size(width, height)
+        if texture == "gravel":
+            tex_image = gravel_texture(n_tex, seed, metres_per_texel=metres_per_texel)
+        else:
+            tex_image = procedural_texture(n_tex, seed)
+        texture_desc = texture
+    else:
         tex_image = load_texture(Path(texture))
         texture_desc = str(Path(texture).resolve())
-    else:
-        tex_image = procedural_texture(procedural_texture_size(width, height), seed)
-        texture_desc = None
     if low_texture:
         n_pad = 16
         smooth = cv2.GaussianBlur(np.pad(tex_image, n_pad, mode="wrap"), (0, 0), 4.0)
@@ -254,13 +301,23 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
     sequences: list[tuple[Path, list[np.ndarray], list[tuple[float, float]] | None, dict]] = []
     if drive:
         origin = tuple(motion_rng.uniform(0.0, 1.0, 2) * period)
-        poses = drive_poses(frames, motion_rng, peak_step=float(max_translation), origin=origin)
+        if rover:
+            scene = rover_scene(preset, terrain, frames, motion_rng=motion_rng,
+                                terrain_rng=terrain_rng, bob_rng=bob_rng,
+                                peak_step=float(max_translation), origin=origin)
+            poses = scene.poses
+        else:
+            poses = drive_poses(frames, motion_rng, peak_step=float(max_translation), origin=origin)
         photometric = None
         if exposure:
             gains = 1.0 + EXPOSURE_GAIN * _smooth(photo_rng, frames, (30.0, 200.0))
             biases = EXPOSURE_BIAS * _smooth(photo_rng, frames, (30.0, 200.0))
             photometric = [(float(g), float(b)) for g, b in zip(gains, biases)]
         params.update(mast_height=DRIVE_MAST_HEIGHT, pitch_deg=DRIVE_PITCH_DEG)
+        if rover:
+            params.update(terrain=terrain, pitch_deg=round(math.degrees(math.asin(-nominal[2, 2])), 9),
+                          mast_forward=float(nominal[0, 3]), supersample=TERRAIN_SUPERSAMPLE,
+                          sun_azimuth_deg=math.degrees(scene.sun_azimuth))
         sequences.append((out_dir, poses, photometric, params))
     else:
         params.update(plane_distance=PAIR_DISTANCE, tilt_deg=PAIR_TILT_DEG,
@@ -278,7 +335,7 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
                               dict(params, pair=i)))
     regions = []
     for _, poses, _, _ in sequences:
-        region = ground_region(cam, poses[0])
+        region = ground_region(cam, nominal if rover else poses[0])
         if region is None:
             raise InputError(f"--size {width}x{height}: the camera sees no ground at frame 0")
         regions.append(region)
@@ -287,7 +344,12 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
     if not drive:
         atomic_write_text(out_dir / "synth.yaml",
                           yaml.safe_dump(params, default_flow_style=None, sort_keys=False))
-    renderer = GroundRenderer(cam, tex)
+    if rover:
+        renderer = TerrainRenderer(cam, tex, scene.terrain, sun_azimuth=scene.sun_azimuth)
+        atomic_write_bytes(out_dir / "terrain.npz",
+                           terrain_npz_bytes(scene.terrain, scene.heights_bounds))
+    else:
+        renderer = GroundRenderer(cam, tex)
     distance = 0.0
     for i, ((seq_dir, poses, photometric, seq_params), region) in enumerate(
             zip(sequences, regions)):
@@ -304,7 +366,11 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
             _write_png(frames_dir / f"frame_{k:06d}.png", img)
             if drive and progress is not None:
                 progress(k + 1, frames)
-        _write_sequence(seq_dir, cam, poses, region, seq_params, photometric)
+        _write_sequence(seq_dir, cam, poses, region, seq_params, photometric,
+                        plane_pose=nominal if rover else None)
+        if rover:
+            init = seq_dir / "init.yaml"
+            atomic_write_text(init, NOMINAL_PLANE_NOTE + init.read_text(encoding="utf-8"))
         distance += float(sum(np.linalg.norm(poses[k][:3, 3] - poses[k - 1][:3, 3])
                               for k in range(1, len(poses))))
         if not drive and progress is not None:

@@ -1,0 +1,97 @@
+"""A keyframe: the paper's ground model (section 10.2.5) anchored on one frame.
+
+:func:`build_keyframe` picks the observation points of every pyramid level of a frame inside
+the ground rectangle, lifts them onto the plane and precomputes their observation rows
+(:class:`~monovo_cli.core.estimate.KeyLevel`); :func:`point_budget` says how many points the
+finest level gets, :func:`footprint` how much of an image the model still covers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from monovo_cli.core.estimate import KeyLevel
+from monovo_cli.core.ground import default_threshold, rectangle_corners, require_points, select_points
+from monovo_cli.core.options import TrackOptions
+from monovo_cli.errors import TrackingError
+from monovo_cli.geometry.camera import PinholeCamera
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.image.gradients import estimate_noise_sigma
+from monovo_cli.image.pyramid import build_pyramid, num_levels
+
+
+@dataclass(frozen=True)
+class Keyframe:
+    """A ground model anchored on one frame: plane and points in that frame's camera."""
+
+    index: int
+    world_from_key: np.ndarray
+    plane: Plane
+    corners: np.ndarray
+    levels: tuple[KeyLevel, ...]
+    noise_sigma: float
+    threshold: float
+
+
+def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: Plane,
+                   region: tuple[int, int, int, int], world_from_key: np.ndarray,
+                   options: TrackOptions, *, mask: np.ndarray | None = None,
+                   pyramid: list[np.ndarray] | None = None) -> Keyframe:
+    """The ground model of section 10.2.5 on ``image`` (H, W) float32, plane in its camera.
+
+    Raises TrackingError when the frame has too few observation points.
+    """
+    n_levels = options.levels or num_levels(camera.width, camera.height)
+    pyr = pyramid if pyramid is not None and len(pyramid) >= n_levels \
+        else build_pyramid(image, n_levels)
+    sigma = estimate_noise_sigma(image)
+    threshold = options.threshold if options.threshold is not None else default_threshold(sigma)
+    corners = rectangle_corners(camera, plane, region)
+    budget = point_budget(options, camera)
+    coarse = min(budget, _one_point_per(options.coarse_pixels_per_point, camera))
+    spline = options.estimator.interpolation != "linear"
+    if not np.all(np.isfinite(corners)) or np.any(corners[:, 2] <= 0):
+        raise TrackingError("the ground plane is not in front of the camera over the region")
+    levels = []
+    m = mask
+    for lv in range(n_levels):
+        cam = camera.scaled(lv)
+        if lv > 0 and m is not None:
+            m = cv2.resize(m.astype(np.uint8), (cam.width, cam.height),
+                           interpolation=cv2.INTER_NEAREST).astype(bool)
+        pts = select_points(pyr[lv], cam, plane, corners, level=lv, threshold=threshold,
+                            max_points=max((budget if lv == 0 else coarse) // (4 ** lv), 200),
+                            mask=m, spline=lv == 0 and spline)
+        if lv == 0:
+            require_points(pts, minimum=options.min_points, threshold=threshold)
+        levels.append(KeyLevel.from_points(pts))
+    # Coarse levels with too few points cannot constrain 6 DoF: drop them.
+    while len(levels) > 1 and len(levels[-1].points) < 30:
+        levels.pop()
+    return Keyframe(index, np.array(world_from_key), plane, corners, tuple(levels), sigma, threshold)
+
+
+def _one_point_per(pixels: int, camera: PinholeCamera) -> int:
+    """One point per ``pixels`` pixels of the image, at least 2000."""
+    return int(max(2000, camera.width * camera.height // pixels))
+
+
+def point_budget(options: TrackOptions, camera: PinholeCamera) -> int:
+    """Observation points at full resolution: ``max_points`` or one per ``pixels_per_point`` px."""
+    if options.max_points is not None:
+        return int(options.max_points)
+    return _one_point_per(options.pixels_per_point, camera)
+
+
+def footprint(camera: PinholeCamera, corners_cur: np.ndarray) -> float:
+    """Share of the image covered by the model rectangle (4, 3) given in the current camera."""
+    if np.any(corners_cur[:, 2] <= 1e-6):
+        return 0.0
+    poly = camera.project(corners_cur).astype(np.float32)
+    img = np.array([[0, 0], [camera.width, 0], [camera.width, camera.height], [0, camera.height]],
+                   np.float32)
+    area, _ = cv2.intersectConvexConvex(poly, img)
+    return float(area) / (camera.width * camera.height)
