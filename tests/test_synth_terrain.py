@@ -292,3 +292,27 @@ def test_gravel_texture_is_seamless_deterministic_and_unlike_the_procedural_one(
         return float(np.var(img - smooth) / np.var(img))
 
     assert fine_share(g) > 0.6 > 0.4 > fine_share(procedural_texture(256, 3))
+
+
+# ----------------------------------------------------------------------------- the command
+
+
+def test_cli_terrain_mer_and_gravel(tmp_path):
+    from click.testing import CliRunner
+
+    from monovo_cli.cli import main
+
+    r = CliRunner().invoke(main, ["synth", str(tmp_path / "a"), "--terrain", "rocks", "--texture",
+                                  "gravel", "--frames", "3", "--size", "64x48", "-q"])
+    assert r.exit_code == 0, r.output
+    params = yaml.safe_load((tmp_path / "a" / "synth.yaml").read_text())
+    assert (params["terrain"], params["texture"], params["preset"]) == ("rocks", "gravel", "drive")
+    assert (tmp_path / "a" / "terrain.npz").is_file()
+    r = CliRunner().invoke(main, ["synth", str(tmp_path / "b"), "--preset", "mer", "--frames", "2",
+                                  "--size", "64x64", "-q"])
+    assert r.exit_code == 0, r.output
+    assert yaml.safe_load((tmp_path / "b" / "synth.yaml").read_text())["terrain"] == "flat"
+    r = CliRunner().invoke(main, ["synth", str(tmp_path / "c"), "--preset", "pairs", "--terrain",
+                                  "slope", "--frames", "1"])
+    assert r.exit_code == 2 and "only the drive and mer presets" in r.output
+    assert "Traceback" not in r.output

@@ -22,18 +22,24 @@ def _default(name: str):
 
 @click.command()
 @click.argument("out", type=click.Path(path_type=Path))
-@click.option("--preset", type=click.Choice(["pairs", "drive"]), cls=LibraryDefault,
-              default_text=_default("preset"))
+@click.option("--preset", type=click.Choice(["pairs", "drive", "mer"]), cls=LibraryDefault,
+              default_text=_default("preset"),
+              help="mer: MER-like 0.6-0.75 m steps and 12-18 deg turns in place, 45 deg field "
+                   "of view, over --terrain.")
 @click.option("--frames", type=click.IntRange(min=1), default=None,
-              help="Frames of the drive, or number of pairs [default: 300 / 100].")
+              help="Frames of the drive, or number of pairs [default: 300 drive, 100 mer / pairs].")
 @click.option("--size", callback=parse_size, default=None, metavar="WxH",
-              help="Image size [default: 512x512 drive, 688x544 pairs].")
+              help="Image size [default: 512x512 drive, 1024x1024 mer, 688x544 pairs].")
+@click.option("--terrain", type=click.Choice(["flat", "rolling", "slope", "rocks"]), default=None,
+              help="Drive over a ray-cast height field, the rover tilting with it and bobbing "
+                   "[default: the plane; flat for mer].")
 @click.option("--noise-var", type=click.FloatRange(min=0.0), cls=LibraryDefault,
               default_text=_default("noise_var"),
               help="Variance of the added Gaussian noise (grey levels^2).")
 @click.option("--seed", type=int, cls=LibraryDefault, default_text=_default("seed"))
-@click.option("--texture", type=click.Path(path_type=Path), default=None,
-              help="A photo to use as ground texture instead of the procedural one.")
+@click.option("--texture", default=None, metavar="PNG|gravel",
+              help="A photo to use as ground texture, or a built-in one: procedural [default] "
+                   "or gravel.")
 @click.option("--max-translation", type=click.FloatRange(min=0.0), default=None,
               help="pairs: translations uniform in +-this per axis, m [default: 10 m at 100 m].")
 @click.option("--exposure", is_flag=True, help="Vary gain and bias from frame to frame.")
@@ -42,7 +48,7 @@ def _default(name: str):
                    "experiment, where the ground's texture is exactly known.")
 @overwrite_option("Replace OUT if it exists.")
 @common
-def synth(verbosity, out, preset, frames, size, noise_var, seed, texture, max_translation,
+def synth(verbosity, out, preset, frames, size, terrain, noise_var, seed, texture, max_translation,
           exposure, clean_frame0, overwrite):
     """Write a synthetic sequence with ground truth into OUT."""
     from monovo_cli.synth.write import synthesize
@@ -59,7 +65,7 @@ def synth(verbosity, out, preset, frames, size, noise_var, seed, texture, max_tr
         else:
             out.unlink()
     with progress_bar(verbosity.quiet, "frame") as bar:
-        s = synthesize(out, frames=frames, size=size, texture=texture,
+        s = synthesize(out, frames=frames, size=size, texture=texture, terrain=terrain,
                        max_translation=max_translation, exposure=exposure,
                        clean_frame0=clean_frame0, progress=bar,
                        **given(preset=preset, noise_var=noise_var, seed=seed))
