@@ -119,9 +119,10 @@ def log_level(verbosity: Verbosity) -> int:
 
 
 def common(f):
-    """-q/--quiet and -v/--verbose on a command (see :class:`Verbosity`); before it runs,
-    logging goes to stderr at their level and SIGTERM stops it cleanly. The command gets
-    the :class:`Verbosity` as its first argument."""
+    """-q/--quiet and -v/--verbose on a command (see :class:`Verbosity`); while it runs,
+    the library logs to stderr at their level and SIGTERM stops it cleanly. The command
+    gets the :class:`Verbosity` as its first argument. The ``monovo_cli`` logger's level is
+    restored afterwards, so that a command run in-process (CliRunner) leaves no trace."""
 
     @functools.wraps(f)
     def command(*args, **kwargs):
@@ -129,9 +130,14 @@ def common(f):
         level = log_level(verbosity)
         logging.basicConfig(level=level, format="monovo: %(levelname)s: %(message)s",
                             stream=sys.stderr)
-        logging.getLogger("monovo_cli").setLevel(level)
+        logger = logging.getLogger("monovo_cli")
+        saved = logger.level
+        logger.setLevel(level)
         signal.signal(signal.SIGTERM, _on_sigterm)
-        return f(verbosity, *args, **kwargs)
+        try:
+            return f(verbosity, *args, **kwargs)
+        finally:
+            logger.setLevel(saved)
 
     return verbosity_options(command)
 
