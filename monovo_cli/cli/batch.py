@@ -13,6 +13,7 @@ from monovo_cli.cli.options import (
     overwrite_option,
     side_inputs,
     skip_bad_frames_option,
+    topic_option,
     track_options,
 )
 
@@ -38,12 +39,14 @@ from monovo_cli.cli.options import (
                    "redo the others.")
 @overwrite_option("Redo every sequence, replacing its outputs.")
 @skip_bad_frames_option("the sequence fails")
+@topic_option
 @side_inputs(batch=True)
 @track_options(LOOP)
 @common
 def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, overwrite,
-          skip_bad_frames, mask, prior, covariance, options):
-    """Track every sequence under ROOT (each a folder holding frames/ and init.yaml).
+          skip_bad_frames, topic, mask, prior, covariance, options):
+    """Track every sequence under ROOT (each a folder holding frames/ and init.yaml,
+    or a video or ROS bag beside an init.yaml).
 
     \b
     Outputs as 'monovo track' in OUTROOT/<relative path>/, then done.json last;
@@ -65,7 +68,8 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
         raise click.UsageError("--resume and --overwrite exclude each other: --resume keeps "
                                "the complete sequences, --overwrite redoes all")
     job = {"track": dataclasses.asdict(options), "mask": mask.resolve() if mask else None,
-           "prior": prior, "covariance": covariance, "skip_bad_frames": skip_bad_frames}
+           "prior": prior, "covariance": covariance, "skip_bad_frames": skip_bad_frames,
+           "topic": topic}
     if verbosity.quiet:
         redirect = contextlib.nullcontext()
     else:  # warnings about failed sequences above the bar, not through it

@@ -57,6 +57,11 @@ def output_option(help: str, *, path: bool = True, required: bool = True):
 #: SEQ: a sequence (a directory of frames, or a folder holding frames/ and init.yaml).
 seq_argument = click.argument("seq", type=click.Path(path_type=Path))
 
+#: --topic: the image topic of a ROS bag SEQ.
+topic_option = click.option("--topic", default=None, metavar="NAME",
+                            help="The image topic when SEQ is a ROS bag (sensor_msgs/Image or "
+                                 "CompressedImage) [default: its only image topic].")
+
 #: -p/--params: the init.yaml of SEQ.
 params_option = click.option("-p", "--params", type=click.Path(path_type=Path), default=None,
                              help="init.yaml [default: the one beside the frames].")

@@ -16,12 +16,14 @@ from monovo_cli.cli.options import (
     params_option,
     parse_triangle,
     seq_argument,
+    topic_option,
 )
 
 
 @click.command()
 @seq_argument
 @params_option
+@topic_option
 @click.option("-t", "--trajectory", type=click.Path(path_type=Path), required=True,
               help="The trajectory.csv (or .tum) of SEQ from 'monovo track'; status and msd "
                    "come from motion.csv beside it.")
@@ -36,7 +38,7 @@ from monovo_cli.cli.options import (
               default_text=keyword_default("monovo_cli.pipeline.overlay", "overlay_sequence", "fps"))
 @overwrite_option("Replace the output if it exists.")
 @common
-def overlay(verbosity, seq, params, trajectory, out, triangle, points, fps, overwrite):
+def overlay(verbosity, seq, params, topic, trajectory, out, triangle, points, fps, overwrite):
     """Render the glued triangle: a triangle on the ground moved with the estimated poses.
 
     \b
@@ -48,6 +50,6 @@ def overlay(verbosity, seq, params, trajectory, out, triangle, points, fps, over
 
     with progress_bar(verbosity.quiet, "frame") as bar:
         s = overlay_sequence(seq, params, trajectory, out, triangle_px=triangle, points=points,
-                             overwrite=overwrite, progress=bar, **given(fps=fps))
+                             overwrite=overwrite, topic=topic, progress=bar, **given(fps=fps))
     if not verbosity.quiet:
         click.echo(f"wrote {s.frames} frames to {s.out} in {s.seconds:.1f} s")

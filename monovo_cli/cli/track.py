@@ -15,6 +15,7 @@ from monovo_cli.cli.options import (
     seq_argument,
     side_inputs,
     skip_bad_frames_option,
+    topic_option,
     track_options,
 )
 
@@ -22,6 +23,7 @@ from monovo_cli.cli.options import (
 @click.command()
 @seq_argument
 @params_option
+@topic_option
 @output_option("Output directory, or '-' to stream motion.csv rows to stdout.", path=False)
 @click.option("--model", type=click.Path(path_type=Path), default=None,
               help="A model.npz from 'monovo init' to start from.")
@@ -32,8 +34,8 @@ from monovo_cli.cli.options import (
 @side_inputs()
 @track_options(LOOP)
 @common
-def track(verbosity, seq, params, out, model, overwrite, groundtruth, skip_bad_frames, mask,
-          prior, covariance, options):
+def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, skip_bad_frames,
+          mask, prior, covariance, options):
     """Estimate the motion of every frame of SEQ; write motion.csv and the trajectory.
 
     With -o DIR also trajectory.png, the path seen from above on the ground plane.
@@ -45,7 +47,7 @@ def track(verbosity, seq, params, out, model, overwrite, groundtruth, skip_bad_f
         s = track_sequence(seq, params, None if to_stdout else Path(out), options,
                            groundtruth=groundtruth, mask=mask, prior=prior, covariance=covariance,
                            model=model, overwrite=overwrite, skip_bad_frames=skip_bad_frames,
-                           progress=bar)
+                           topic=topic, progress=bar)
     if not verbosity.quiet:
         click.echo(f"tracked {s.frames} frames in {s.seconds:.1f} s ({s.fps:.1f} frames/s): "
                    f"mean msd {s.mean_msd:.2f}, {s.reanchored} re-anchored, {s.lost} lost, "

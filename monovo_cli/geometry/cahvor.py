@@ -53,7 +53,7 @@ from monovo_cli.geometry.camera import PinholeCamera
 FIT_GRID = 41
 _NEWTON_ITERATIONS = 100
 _NEWTON_TOL = 1e-12
-_SMALL = 1e-8  # tan of the angle below which a ray counts as on the optical axis
+_SMALL = 1e-8  # tan of the angle below which a ray is on the optical axis
 
 
 def _vec(name: str, value) -> np.ndarray:
@@ -163,13 +163,6 @@ class CahvorModel:
         """Pixels (N, 2) of model-frame points ``P`` (N, 3), m; NaN for points behind."""
         p = np.asarray(P, dtype=float).reshape(-1, 3) - self.C
         return self._project_directions(p)
-
-    def project_directions(self, d: np.ndarray) -> np.ndarray:
-        """Pixels (N, 2) of the points at infinity along model-frame directions ``d`` (N, 3)
-        (for CAHVORE the pupil shift vanishes there); NaN for directions behind."""
-        d = np.asarray(d, dtype=float).reshape(-1, 3)
-        scale = 1e12 / np.maximum(np.linalg.norm(d, axis=1, keepdims=True), 1e-300)
-        return self._project_directions(d * scale if self._has_pupil_shift else d)
 
     @property
     def _has_pupil_shift(self) -> bool:

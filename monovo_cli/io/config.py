@@ -94,6 +94,10 @@ def _distortion(name: str, where: str, value: Any) -> tuple[float, ...]:
 
 def _camera_section(name: str, value: Any) -> PinholeCamera:
     cam = mapping(name, "camera", value, "width, height, fx, fy, cx, cy[, distortion]")
+    if "model" in cam:  # a JPL camera model (CAHV, CAHVOR, CAHVORE)
+        from monovo_cli.io.jpl_camera import camera_from_yaml
+
+        return camera_from_yaml(name, cam)
     check_keys(name, cam, CAMERA_KEYS, "camera.")
     for key in CAMERA_KEYS[:6]:
         if key not in cam:
@@ -122,6 +126,10 @@ def _camera_info(init_name: str, base_dir: Path, value: Any) -> PinholeCamera:
     if not path.is_absolute():
         path = base_dir / path
     name = str(path)
+    if path.suffix.lower() in (".img", ".lbl", ".xml"):  # a PDS product's camera model
+        from monovo_cli.io.jpl_camera import camera_from_label
+
+        return camera_from_label(init_name, path)
     data = read_yaml(path, name, f"the camera_file named in {init_name}")
     fix = "expected a ROS camera_info YAML with image_width, image_height, camera_matrix"
     if not isinstance(data, dict):

@@ -146,7 +146,7 @@ def camera_from_yaml(name: str, cam: dict) -> PinholeCamera:
 
 def camera_from_label(name: str, path: Path) -> PinholeCamera:
     """The pinhole camera of the CAHV* model in a PDS product's label (``camera_file:``)."""
-    from monovo_cli.io.pds import read_camera_model
+    from monovo_cli.io.pds_camera import read_camera_model
 
     try:
         found = read_camera_model(Path(path))

@@ -19,8 +19,8 @@ What a product gives (:class:`PdsFrame`):
   B). Raw DNs are used: the label's scaling factor and offset (physical units) are not.
 - its time, seconds since 1970-01-01 UTC (leap seconds ignored), from PDS3 ``START_TIME``
   (else ``IMAGE_TIME``) or PDS4 ``start_date_time``; None when the label has none.
-- its camera model (:func:`read_camera_model`), from a PDS3 ``GEOMETRIC_CAMERA_MODEL*``
-  group or a PDS4 ``geom:CAHV*_Model``.
+- its camera model (:mod:`monovo_cli.io.pds_camera`), from a PDS3
+  ``GEOMETRIC_CAMERA_MODEL*`` group or a PDS4 ``geom:CAHV*_Model``.
 
 Every problem is an :class:`~monovo_cli.errors.InputError` with one line naming the file.
 """
@@ -30,7 +30,6 @@ from __future__ import annotations
 import calendar
 import contextlib
 import io
-import math
 import re
 import warnings
 from collections.abc import Iterator, Mapping
@@ -98,7 +97,7 @@ def is_pds4_label(path: Path) -> bool:
     return _PDS4_ROOT in head
 
 
-def _open(path: Path):
+def open_product(path: Path):
     pdr = _pdr()
     try:
         with _quiet():
@@ -111,19 +110,19 @@ def _local(key: Any) -> str:
     return str(key).rsplit(":", 1)[-1]
 
 
-def _walk(block: Any) -> Iterator[tuple[str, Any]]:
+def walk_label(block: Any) -> Iterator[tuple[str, Any]]:
     """Every (local key, value) of a label, depth first, in label order."""
     if isinstance(block, Mapping):
         for key, value in block.items():
             yield _local(key), value
-            yield from _walk(value)
+            yield from walk_label(value)
     elif isinstance(block, (list, tuple)):
         for item in block:
             if isinstance(item, (Mapping, list, tuple)):
-                yield from _walk(item)
+                yield from walk_label(item)
 
 
-def _first(block: Any, *names: str, skip: tuple[str, ...] = ()) -> Any:
+def label_value(block: Any, *names: str, skip: tuple[str, ...] = ()) -> Any:
     """The first value whose local key is one of ``names`` (case-insensitive), outside the
     blocks named in ``skip``."""
     wanted = {n.lower() for n in names}
@@ -183,7 +182,7 @@ def parse_time(value: Any) -> float | None:
 
 def _label_time(meta: Any) -> float | None:
     for key in ("START_TIME", "IMAGE_TIME", "start_date_time"):
-        t = parse_time(_first(meta, key))
+        t = parse_time(label_value(meta, key))
         if t is not None:
             return t
     return None
@@ -205,15 +204,15 @@ def _bits_from_mask(value: Any) -> int | None:
     return mask.bit_length() if mask > 0 else None
 
 
-def _declared_bits(meta: Any, storage_bits: int) -> int:
+def declared_bits(meta: Any, storage_bits: int) -> int:
     """Significant bits of the samples (see the module docstring)."""
     skip = ("Commanded_Parameters",)
     for key in ("SAMPLE_BIT_MASK", "sample_bit_mask"):
-        b = _bits_from_mask(_first(meta, key, skip=skip))
+        b = _bits_from_mask(label_value(meta, key, skip=skip))
         if b is not None:
             return min(b, storage_bits)
     for key in ("SAMPLE_BITS", "sample_bits"):
-        value = _first(meta, key, skip=skip)
+        value = label_value(meta, key, skip=skip)
         try:
             b = int(float(str(value))) if value is not None else None
         except ValueError:
@@ -223,7 +222,7 @@ def _declared_bits(meta: Any, storage_bits: int) -> int:
     return storage_bits
 
 
-def _image_array(data: Any, path: Path) -> np.ndarray:
+def image_array(data: Any, path: Path) -> np.ndarray:
     """The product's image: the ``IMAGE`` object (PDS3) or the first 2-D/3-D image array."""
     keys = [k for k in data.keys() if str(k).upper() != "LABEL"]
     preferred = [k for k in keys if str(k).upper() == "IMAGE"]
@@ -244,7 +243,7 @@ def _image_array(data: Any, path: Path) -> np.ndarray:
                      "Array_2D_Image / Array_3D_Image)")
 
 
-def _to_gray(arr: np.ndarray, bits: int, path: Path) -> np.ndarray:
+def to_gray(arr: np.ndarray, bits: int, path: Path) -> np.ndarray:
     if arr.ndim == 3:
         if arr.shape[0] == 1:
             arr = arr[0]
@@ -286,138 +285,69 @@ def _to_gray(arr: np.ndarray, bits: int, path: Path) -> np.ndarray:
     return np.ascontiguousarray(f, dtype=np.float32)
 
 
+def product_image(data: Any, path: Path) -> tuple[np.ndarray, int]:
+    """The grey image (H, W) float32 0..255 of an opened product and its significant bits."""
+    arr = image_array(data, path)
+    storage = arr.dtype.itemsize * 8
+    bits = declared_bits(data.metadata, storage) if arr.dtype.kind in "ui" else storage
+    return to_gray(arr, bits, path), bits
+
+
 def read_product(path: Path) -> PdsFrame:
     """Read one PDS3/PDS4 product (module docstring); InputError if it cannot be used."""
     path = Path(path)
-    data = _open(path)
-    arr = _image_array(data, path)
-    storage = arr.dtype.itemsize * 8
-    bits = _declared_bits(data.metadata, storage) if arr.dtype.kind in "ui" else storage
-    return PdsFrame(image=_to_gray(arr, bits, path), bits=bits,
-                    timestamp=_label_time(data.metadata), path=path)
+    data = open_product(path)
+    image, bits = product_image(data, path)
+    return PdsFrame(image=image, bits=bits, timestamp=_label_time(data.metadata), path=path)
 
 
 def read_label_time(path: Path) -> float | None:
     """The time (s, UTC, Unix epoch) a product's label gives, without reading its image."""
-    return _label_time(_open(Path(path)).metadata)
+    return _label_time(open_product(Path(path)).metadata)
 
 
-# ----------------------------------------------------------------------------- camera model
-
-
-def _three(value: Any, what: str, path: Path) -> list[float]:
-    if isinstance(value, Mapping):
-        value = list(value.values())
-    if isinstance(value, str):
-        value = [v for v in re.split(r"[\s,()]+", value) if v]
-    try:
-        out = [float(str(v).split("<")[0]) for v in value]
-    except (TypeError, ValueError):
-        out = []
-    if len(out) != 3 or not all(math.isfinite(v) for v in out):
-        raise InputError(f"{path}: camera model {what} must be 3 numbers, got {value!r}")
-    return out
-
-
-@dataclass(frozen=True)
-class LabelCamera:
-    """A camera model found in a label: ``kind`` (cahv, cahvor, cahvore), its vectors
-    ``C A H V O R E`` (lists of 3 floats, model frame), ``linearity``, the image size and the
-    label's name of the model's frame (``None`` if it gives none)."""
-
-    kind: str
-    vectors: dict[str, list[float]]
-    linearity: float
-    width: int
-    height: int
-    frame: str | None
-
-
-def _linearity(mtype: Any, mparm: Any, path: Path) -> float:
-    """CAHVORE's linearity from its type (1 perspective, 2 fish-eye, 3 general) and parameter."""
-    try:
-        t = int(float(str(mtype))) if mtype is not None else 1
-        p = float(str(mparm)) if mparm is not None else 0.0
-    except ValueError:
-        raise InputError(f"{path}: CAHVORE model type {mtype!r} / parameter {mparm!r} are not "
-                         "numbers") from None
-    if t == 1:
-        return 1.0
-    if t == 2:
-        return 0.0
-    if t == 3:
-        return p
-    raise InputError(f"{path}: CAHVORE model type {t} unknown (expected 1 perspective, "
-                     "2 fish-eye or 3 general)")
-
-
-def _pds3_camera(meta: Any, path: Path) -> tuple[str, dict, float, str | None] | None:
-    group = None
-    for key, value in _walk(meta):
-        if key.upper().startswith("GEOMETRIC_CAMERA_MODEL") and isinstance(value, Mapping):
-            group = value
-            break
-    if group is None:
+def label_times(paths: list[Path], times_file: str) -> np.ndarray | None:
+    """The products' label times (s), None when no label has one; InputError when only some
+    have one or they do not increase (``times_file`` then gives the timestamps)."""
+    times = [read_label_time(p) for p in paths]
+    if all(t is None for t in times):
         return None
-    kind = str(group.get("MODEL_TYPE", "")).strip().strip('"').upper()
-    names = {"CAHV": "CAHV", "CAHVOR": "CAHVOR", "CAHVORE": "CAHVORE"}
-    if kind not in names:
-        raise InputError(f"{path}: camera model type {kind or 'missing'!r} is not supported "
-                         "(expected CAHV, CAHVOR or CAHVORE)")
-    vectors = {}
-    for i, name in enumerate(kind, start=1):
-        value = group.get(f"MODEL_COMPONENT_{i}")
-        if value is None:
-            raise InputError(f"{path}: camera model MODEL_COMPONENT_{i} ({name}) is missing")
-        vectors[name] = _three(value, f"MODEL_COMPONENT_{i} ({name})", path)
-    linearity = 1.0
-    if kind == "CAHVORE":
-        linearity = _linearity(group.get("MODEL_COMPONENT_8"), group.get("MODEL_COMPONENT_9"), path)
-    frame = group.get("REFERENCE_COORD_SYSTEM_NAME")
-    return kind.lower(), vectors, linearity, None if frame is None else str(frame)
+    fix = f"give the timestamps in {times_file} (one line per frame) instead"
+    for p, t in zip(paths, times):
+        if t is None:
+            raise InputError(f"{p}: the label has no START_TIME / start_date_time but others "
+                             f"have; {fix}")
+    for k in range(1, len(times)):
+        if times[k] <= times[k - 1]:
+            raise InputError(f"{paths[k]}: label time {times[k]!r} s does not follow "
+                             f"{paths[k - 1].name}'s {times[k - 1]!r} s; {fix}")
+    return np.array(times, dtype=float)
 
 
-_PDS4_VECTORS = {"C": "Vector_Center", "A": "Vector_Axis", "H": "Vector_Horizontal",
-                 "V": "Vector_Vertical", "O": "Vector_Optical", "R": "Radial_Terms",
-                 "E": "Entrance_Terms"}
+_REFERENCE = re.compile(rb'<file_name>\s*([^<]+?)\s*</file_name>|\^\w+\s*=\s*\(?\s*"([^"]+)"')
 
 
-def _pds4_camera(meta: Any, path: Path) -> tuple[str, dict, float, str | None] | None:
-    for kind in ("CAHVORE", "CAHVOR", "CAHV"):
-        block = _first(meta, f"{kind}_Model")
-        if isinstance(block, Mapping):
-            break
-    else:
-        return None
-    vectors = {}
-    for name in kind:
-        value = _first(block, _PDS4_VECTORS[name])
-        if value is None:
-            raise InputError(f"{path}: camera model {kind}_Model has no {_PDS4_VECTORS[name]}")
-        vectors[name] = _three(value, _PDS4_VECTORS[name], path)
-    linearity = 1.0
-    if kind == "CAHVORE":
-        linearity = _linearity(_first(block, "cahvore_model_type"),
-                               _first(block, "cahvore_model_parameter"), path)
-    frame = _first(meta, "coordinate_space_frame_type")
-    return kind.lower(), vectors, linearity, None if frame is None else str(frame)
-
-
-def read_camera_model(path: Path) -> LabelCamera:
-    """The CAHV/CAHVOR/CAHVORE camera model of a product's label and its image size
-    (from the image). InputError if the label has none or it is malformed."""
-    path = Path(path)
-    data = _open(path)
-    meta = data.metadata
-    found = _pds3_camera(meta, path)
-    if found is None:
-        found = _pds4_camera(meta, path)
-    if found is None:
-        raise InputError(f"{path}: the label has no camera model (expected a PDS3 "
-                         "GEOMETRIC_CAMERA_MODEL group or a PDS4 geom:CAHVOR_Model)")
-    kind, vectors, linearity, frame = found
-    arr = _image_array(data, path)
-    bits = _declared_bits(meta, arr.dtype.itemsize * 8) if arr.dtype.kind in "ui" else 32
-    height, width = _to_gray(arr, bits, path).shape
-    return LabelCamera(kind=kind, vectors=vectors, linearity=linearity, width=int(width),
-                       height=int(height), frame=frame)
+def list_products(directory: Path) -> list[Path]:
+    """The PDS products of a directory (unsorted): PDS3 detached labels (``.LBL``), PDS4
+    labels (``.xml`` of a ``Product_Observational``) and the ``.IMG`` files no label names
+    (their label is attached). Hidden files are skipped; dangling links count."""
+    try:
+        entries = [p for p in directory.iterdir() if not p.name.startswith(".")
+                   and p.name.lower().endswith(PDS_EXTENSIONS)
+                   and (p.is_file() or (p.is_symlink() and not p.exists()))]
+    except OSError as exc:
+        raise InputError(f"{directory}: cannot list the directory ({exc.strerror or exc})") from None
+    labels = [p for p in entries if p.suffix.lower() in PDS_LABEL_EXTENSIONS
+              and (p.suffix.lower() != ".xml" or is_pds4_label(p))]
+    named = {p.stem.casefold() for p in labels}
+    for label in labels:
+        try:
+            with open(label, "rb") as f:
+                head = f.read(1 << 16)
+        except OSError:
+            continue
+        for m in _REFERENCE.finditer(head):
+            ref = (m.group(1) or m.group(2)).decode("utf-8", "replace")
+            named.update((ref.casefold(), Path(ref).stem.casefold()))
+    return labels + [p for p in entries if p.suffix.lower() in PDS_DATA_EXTENSIONS
+                     and p.stem.casefold() not in named and p.name.casefold() not in named]

@@ -48,7 +48,8 @@ class JobOptions:
     their defaults are written), and what ``monovo batch`` sets per sequence: ``mask``, one
     PNG for every sequence (an absolute path); ``prior``, a motion CSV's path relative to
     each sequence folder; ``covariance``, a CSV's path relative to each output folder;
-    ``skip_bad_frames``, as ``monovo track --skip-bad-frames``.
+    ``skip_bad_frames``, as ``monovo track --skip-bad-frames``; ``topic``, the image topic
+    of the sequences that are ROS bags.
 
     Travels as ``dataclasses.asdict(JobOptions(...))``, a JSON-able dict, and is written so
     into ``done.json``; :func:`normalize_options` completes and checks such a dict.
@@ -59,6 +60,7 @@ class JobOptions:
     prior: str | None = None
     covariance: str | None = None
     skip_bad_frames: bool = False
+    topic: str | None = None
 
 
 # --------------------------------------------------------------------------- discovery
@@ -85,17 +87,26 @@ def is_sequence_folder(path: Path) -> bool:
     return (path / FRAMES_SUBDIR).is_dir() and (path / INIT_FILE).is_file()
 
 
+def _containers(path: Path) -> list[Path]:
+    """The videos and ROS bags of a folder holding ``init.yaml`` but no ``frames/``."""
+    from monovo_cli.io.containers import list_containers
+
+    return list_containers(path) if (path / INIT_FILE).is_file() else []
+
+
 def find_sequences(root: Path, *, pattern: str | None = None,
                    exclude: Sequence[Path] = ()) -> list[Path]:
     """The sequences under ``root`` as paths relative to it, in natural order.
 
     Without ``pattern``: every folder (``root`` itself included) holding ``frames/`` and
-    ``init.yaml``; the search does not descend into a sequence, nor into hidden folders or
-    the folders in ``exclude`` (e.g. the output root when it lies inside ``root``); symbolic
-    links to folders are followed (each real folder once). With ``pattern`` (a
+    ``init.yaml``, and every video (by extension) and ROS bag beside an ``init.yaml`` (in a
+    folder without ``frames/``); the search does not descend into a sequence, a bag, hidden
+    folders or the folders in ``exclude`` (e.g. the output root when it lies inside ``root``);
+    symbolic links to folders are followed (each real folder once). With ``pattern`` (a
     :meth:`pathlib.Path.glob` pattern relative to ``root``, ``**`` allowed): every matching
-    directory outside ``exclude``, whatever it holds -- ``monovo track``'s rules apply to it
-    (a directory of frames with ``init.yaml`` beside them, or a folder holding ``frames/``).
+    directory, video or bag outside ``exclude``, whatever it holds -- ``monovo track``'s rules
+    apply to it (a directory of frames with ``init.yaml`` beside them, a folder holding
+    ``frames/``, a video or bag with ``init.yaml`` beside it).
     A sequence folder's relative path ``.`` stands for ``root`` itself.
 
     Raises InputError if ``root`` is not a directory or holds no sequence.
@@ -114,9 +125,12 @@ def find_sequences(root: Path, *, pattern: str | None = None,
             matches = list(root.glob(pattern))
         except (ValueError, NotImplementedError) as exc:
             raise InputError(f"--glob {pattern!r}: not a usable pattern ({exc})") from None
+        from monovo_cli.io.containers import is_container
+
         for m in matches:
             real = os.path.realpath(m)
-            if m.is_dir() and not any(real == e or real.startswith(e + os.sep) for e in excluded):
+            if (m.is_dir() or is_container(m)) and not any(
+                    real == e or real.startswith(e + os.sep) for e in excluded):
                 found.append(m.relative_to(root))
         what = f"no directory under {root} matches --glob {pattern!r}"
     else:
@@ -132,9 +146,13 @@ def find_sequences(root: Path, *, pattern: str | None = None,
                 found.append(here.relative_to(root))
                 dirnames[:] = []  # a sequence's subfolders are its own data
                 continue
-            dirnames[:] = [d for d in dirnames if not d.startswith(".") and d != FRAMES_SUBDIR]
+            media = {p.name for p in _containers(here)}  # videos and bags beside init.yaml
+            found.extend(here.relative_to(root) / name for name in media)
+            dirnames[:] = [d for d in dirnames if not d.startswith(".") and d not in media
+                           and d != FRAMES_SUBDIR]
         what = (f"no sequence under {root} (a sequence is a folder holding {FRAMES_SUBDIR}/ and "
-                f"{INIT_FILE}; use --glob PATTERN for other layouts)")
+                f"{INIT_FILE}, or a video or ROS bag beside an {INIT_FILE}; use --glob PATTERN "
+                "for other layouts)")
     if not found:
         raise InputError(what)
     return sorted(set(found), key=_natural_parts)
@@ -191,7 +209,13 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def _input_fingerprint(seq_dir: Path, prior: str | None) -> tuple[int, str]:
+def _folder(seq: Path) -> Path:
+    """The folder of a sequence: itself, or the one holding a video or bag file."""
+    return seq if seq.is_dir() else seq.parent
+
+
+def _input_fingerprint(seq_dir: Path, prior: str | None,
+                       topic: str | None = None) -> tuple[int, str]:
     """(number of frames, SHA-256 over the frame names and sizes, init.yaml and the prior).
 
     Frames are compared by name and size, not content: hashing an archive's images on every
@@ -199,12 +223,12 @@ def _input_fingerprint(seq_dir: Path, prior: str | None) -> tuple[int, str]:
     """
     from monovo_cli.io.frames import FrameSequence, find_init_yaml
 
-    frames = FrameSequence(seq_dir)
+    frames = FrameSequence(seq_dir, topic=topic)
     h = hashlib.sha256()
     for p in frames.paths:
         h.update(f"{p.name}\0{p.stat().st_size}\n".encode())
     for extra in (find_init_yaml(Path(seq_dir)), frames.times_path,
-                  Path(seq_dir) / prior if prior else None):
+                  _folder(Path(seq_dir)) / prior if prior else None):
         if extra is not None and Path(extra).is_file():
             h.update(f"{Path(extra).name}\0{_sha256(Path(extra))}\n".encode())
     return len(frames), h.hexdigest()
@@ -230,11 +254,12 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: dict[str, Any] 
     """Track one sequence into ``out_dir`` as ``monovo track SEQ -o OUT`` does; never raises
     for a bad sequence.
 
-    ``seq_dir``: a sequence folder (``frames/`` and ``init.yaml``) or a directory of frames
-    with ``init.yaml`` beside them. ``options``: :class:`JobOptions` or a dict of some of its
-    fields (see :func:`job_options`; unknown keys raise ValueError). ``overwrite``: replace
-    results already in ``out_dir`` (else such a folder is an error). ``single_thread``: run
-    OpenCV on one thread (see :func:`limit_threads`).
+    ``seq_dir``: a sequence folder (``frames/`` and ``init.yaml``), a directory of frames
+    with ``init.yaml`` beside them, or a video or ROS bag with ``init.yaml`` beside it.
+    ``options``: :class:`JobOptions` or a dict of some of its fields (see
+    :func:`job_options`; unknown keys raise ValueError). ``overwrite``: replace results
+    already in ``out_dir`` (else such a folder is an error). ``single_thread``: run OpenCV on
+    one thread (see :func:`limit_threads`).
 
     Writes motion.csv, trajectory.csv, trajectory.tum and trajectory.png, then, last,
     ``done.json`` (what :func:`is_complete` checks). Returns a JSON-able dict: ``status``
@@ -262,9 +287,9 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: dict[str, Any] 
             seq_dir, None, out_dir, job.track, overwrite=overwrite,
             skip_bad_frames=job.skip_bad_frames,
             mask=Path(job.mask) if job.mask else None,
-            prior=seq_dir / job.prior if job.prior else None,
-            covariance=out_dir / job.covariance if job.covariance else None)
-        n_frames, fingerprint = _input_fingerprint(seq_dir, job.prior)
+            prior=_folder(seq_dir) / job.prior if job.prior else None,
+            covariance=out_dir / job.covariance if job.covariance else None, topic=job.topic)
+        n_frames, fingerprint = _input_fingerprint(seq_dir, job.prior, job.topic)
         rows = {"motion.csv": (_count_rows(out_dir / "motion.csv", True), n_frames - 1),
                 "trajectory.csv": (_count_rows(out_dir / "trajectory.csv", True), n_frames),
                 "trajectory.tum": (_count_rows(out_dir / "trajectory.tum", False), n_frames)}
@@ -318,7 +343,7 @@ def is_complete(seq_dir: str | Path, out_dir: str | Path,
             return False, f"{DONE_FILE} of another format ({marker.get('format')!r})"
         if marker.get("options") != asdict(job):
             return False, "tracked with other options"
-        n_frames, fingerprint = _input_fingerprint(seq_dir, job.prior)
+        n_frames, fingerprint = _input_fingerprint(seq_dir, job.prior, job.topic)
         if (marker.get("frames"), marker.get("inputs_sha256")) != (n_frames, fingerprint):
             return False, "the sequence's frames, init.yaml, times.txt or prior changed"
         for name, want in marker["files"].items():

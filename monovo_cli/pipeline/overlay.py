@@ -52,7 +52,7 @@ def _trajectory_by_frame(path: Path, frames: FrameSequence) -> dict[int, np.ndar
 
 def overlay_sequence(seq: Path, params: Path | None, trajectory: Path, out: str | Path, *,
                      triangle_px: np.ndarray | None = None, points: bool = False,
-                     fps: float = 10.0, overwrite: bool = False,
+                     fps: float = 10.0, overwrite: bool = False, topic: str | None = None,
                      progress: Callable[[int, int], None] | None = None) -> OverlaySummary:
     """``monovo overlay``: render the glued triangle into every frame of ``seq``.
 
@@ -60,13 +60,14 @@ def overlay_sequence(seq: Path, params: Path | None, trajectory: Path, out: str 
     motion.csv beside it when it is there. ``triangle_px`` (3, 2) frame-0 pixels (None: the
     default triangle). Frames 0 .. the last posed frame are written to ``out`` (.mp4, .gif or
     a directory of PNGs, :mod:`monovo_cli.io.video`); frames without a pose show no triangle.
+    ``topic`` the image topic of a ROS bag.
     """
     from monovo_cli.io.formats import read_motion_stats
     from monovo_cli.io.video import open_sink
     from monovo_cli.viz.overlay import OverlayRenderer, triangle_on_ground
 
     t0 = time.perf_counter()
-    frames, cfg = open_sequence(seq, params)
+    frames, cfg = open_sequence(seq, params, topic=topic)
     trajectory = Path(trajectory)
     poses = _trajectory_by_frame(trajectory, frames)
     motion = trajectory.parent / "motion.csv"

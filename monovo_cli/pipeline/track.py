@@ -54,10 +54,12 @@ class TrackSummary:
         return self.frames / self.seconds if self.seconds > 0 else float("inf")
 
 
-def open_sequence(seq: Path, params: Path | None) -> tuple[FrameSequence, InitConfig]:
-    """The frames of ``seq`` and its init.yaml (``params``, or found beside the frames)."""
+def open_sequence(seq: Path, params: Path | None, *,
+                  topic: str | None = None) -> tuple[FrameSequence, InitConfig]:
+    """The frames of ``seq`` and its init.yaml (``params``, or found beside the frames);
+    ``topic`` the image topic of a ROS bag."""
     seq_dir = resolve_sequence(Path(seq))
-    frames = FrameSequence(seq_dir)
+    frames = FrameSequence(seq_dir, topic=topic)
     if params is None:
         params = find_init_yaml(Path(seq))
         if params is None:
@@ -94,9 +96,10 @@ def prepare_out_dir(out_dir: Path, overwrite: bool) -> None:
         raise OutputError(f"{out_dir}: not writable ({exc.strerror})") from None
 
 
-def init_model(seq: Path, params: Path | None, out: Path, options: TrackOptions) -> Keyframe:
+def init_model(seq: Path, params: Path | None, out: Path, options: TrackOptions, *,
+               topic: str | None = None) -> Keyframe:
     """``monovo init``: build the frame-0 ground model and save it to ``out`` (model.npz)."""
-    frames, cfg = open_sequence(seq, params)
+    frames, cfg = open_sequence(seq, params, topic=topic)
     first = frames.read(0)
     with _naming(first.path):
         key = build_keyframe(0, first.image, cfg.camera, cfg.plane, cfg.region, np.eye(4), options)
@@ -148,6 +151,7 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                    skip_bad_frames: bool = False, checkpoint_every: int = 100,
                    groundtruth: Path | None = None, mask: Path | None = None,
                    prior: Path | None = None, covariance: Path | None = None,
+                   topic: str | None = None,
                    progress: Callable[[int, int], None] | None = None) -> TrackSummary:
     """``monovo track``: estimate every frame's motion and write motion.csv, trajectory.csv
     and trajectory.tum (docs/guide.md "File formats").
@@ -162,10 +166,11 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     ``mask`` a PNG of the frame size whose non-zero pixels are never used (rover body, a
     fixed shadow); ``prior`` a motion CSV (motion.csv's columns) whose motions replace the
     constant-velocity guess; ``covariance`` a CSV written row by row with each frame's full
-    6x6 covariance of (tx, ty, tz, rx, ry, rz) (m, rad).
+    6x6 covariance of (tx, ty, tz, rx, ry, rz) (m, rad). ``topic`` the image topic of a ROS
+    bag.
     ``progress(done, total)`` is called after every frame.
     """
-    frames, cfg = open_sequence(seq, params)
+    frames, cfg = open_sequence(seq, params, topic=topic)
     usable = _read_mask(Path(mask), cfg) if mask is not None else None
     priors = _read_prior(Path(prior)) if prior is not None else {}
     gt_poses = None
