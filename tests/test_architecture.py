@@ -1,0 +1,111 @@
+"""The package's layers (docs/architecture.md): imports only go down, no cycles, rooms stay small.
+
+Every ``import`` counts, including the lazy ones inside functions: a lazy import upward is
+still an upward dependency.
+"""
+
+import ast
+from pathlib import Path
+
+PKG = Path(__file__).resolve().parents[1] / "monovo_cli"
+
+# lowest first; a module may import from its own folder and from lower ranks only
+LAYERS = {
+    "errors": 0, "__init__": 0,
+    "geometry": 1,
+    "image": 2,
+    "core": 3,
+    "io": 4,
+    "viz": 5, "synth": 5,  # siblings: neither imports the other
+    "pipeline": 6,
+    "cli": 7,
+    "__main__": 8,  # python -m monovo_cli: calls the CLI
+}
+MAX_LINES = 400
+LONG_MARK = "Long module:"  # a module above MAX_LINES says why at its top, after this mark
+
+
+def _modules():
+    for path in sorted(PKG.rglob("*.py")):
+        rel = path.relative_to(PKG).with_suffix("")
+        yield ".".join(("monovo_cli",) + rel.parts), path
+
+
+def _room(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "__init__"
+
+
+def _imports(module: str, path: Path) -> set[str]:
+    out = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+            if node.module == "monovo_cli":  # from monovo_cli import x: x is a module or a name
+                out |= {f"monovo_cli.{a.name}" if (PKG / a.name).exists() or (PKG / f"{a.name}.py").exists()
+                        else "monovo_cli" for a in node.names}
+            elif node.module.startswith("monovo_cli."):
+                out.add(node.module)
+        elif isinstance(node, ast.ImportFrom) and node.level:
+            raise AssertionError(f"{module}: relative import; the package uses absolute ones")
+        elif isinstance(node, ast.Import):
+            out |= {a.name for a in node.names if a.name.startswith("monovo_cli.")}
+    return out
+
+
+def _graph():
+    return {m: _imports(m, p) for m, p in _modules()}
+
+
+def test_every_room_has_a_rank():
+    assert {_room(m) for m, _ in _modules()} <= set(LAYERS)
+
+
+def test_imports_only_go_down():
+    bad = []
+    for mod, deps in _graph().items():
+        here = _room(mod)
+        for dep in deps:
+            there = _room(dep)
+            if there == here:
+                continue
+            if LAYERS[there] >= LAYERS[here]:
+                bad.append(f"{mod} -> {dep}")
+    assert not bad, "imports upward or sideways:\n" + "\n".join(bad)
+
+
+def test_no_import_cycle():
+    graph = {m: {d for d in deps if d in dict(_modules())} for m, deps in _graph().items()}
+    state: dict[str, int] = {}
+
+    def visit(node, stack):
+        state[node] = 1
+        for nxt in graph.get(node, ()):
+            if state.get(nxt) == 1:
+                raise AssertionError("import cycle: " + " -> ".join(stack[stack.index(nxt):] + [nxt]))
+            if nxt not in state:
+                visit(nxt, stack + [nxt])
+        state[node] = 2
+
+    for m in graph:
+        if m not in state:
+            visit(m, [m])
+
+
+def test_long_modules_say_why():
+    long = [f"{m} ({n} lines)" for m, p in _modules()
+            if (n := len(p.read_text().splitlines())) > MAX_LINES
+            and LONG_MARK not in (ast.get_docstring(ast.parse(p.read_text())) or "")]
+    assert not long, f"above {MAX_LINES} lines without '{LONG_MARK} <why>' in the docstring: {long}"
+
+
+def test_the_core_does_no_io_and_no_cli():
+    """Below the pipeline nothing imports click or tqdm (the pure core, thin edge)."""
+    bad = []
+    for mod, path in _modules():
+        if LAYERS[_room(mod)] >= LAYERS["pipeline"]:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            bad += [f"{mod}: {n}" for n in names if n.split(".")[0] in ("click", "tqdm")]
+    assert not bad, bad
