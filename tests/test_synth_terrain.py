@@ -214,6 +214,14 @@ def test_terrain_npz_is_the_rendered_surface(rolling_drive, texture):
     j, i = 17, 23
     assert heights[j, i] == pytest.approx(terrain.height(origin[0] + i * step, origin[1] + j * step),
                                           abs=1e-6)
+    # The camera poses in G agree with the ground truth; camera 0 is ~1.5 m over the ground.
+    with np.load(rolling_drive / "terrain.npz") as f:
+        g = f["g_from_cam"]
+    _, tum = read_tum(rolling_drive / "groundtruth.tum")
+    for k in range(len(tum)):
+        assert se3_inv(g[0]) @ g[k] == pytest.approx(tum[k], abs=1e-6)
+    clearance = g[0][2, 3] - terrain.height(g[0][0, 3], g[0][1, 3])
+    assert 1.5 - 0.1 < clearance < 1.5 + 0.1  # mast, bobbing (+-2 cm + tilt), swell (+-5 cm)
 
 
 def test_frame0_is_off_the_nominal_mounting_by_the_bobbing_crest():

@@ -211,10 +211,13 @@ def make_terrain(kind: str, rng: np.random.Generator,
 # --------------------------------------------------------------------------- terrain.npz
 
 
-def terrain_npz_bytes(terrain: Terrain, bounds: tuple[float, float, float, float]) -> bytes:
-    """``terrain.npz``: the exact parameters (read back by :func:`load_terrain`) and, for
-    tools without monovo, ``heights`` (rows y, columns x) sampled every HEIGHTS_SPACING m over
-    ``bounds``, sample ``[j, i]`` at ``heights_origin + (i, j) * heights_spacing``."""
+def terrain_npz_bytes(terrain: Terrain, bounds: tuple[float, float, float, float],
+                      g_from_cam: list[np.ndarray]) -> bytes:
+    """``terrain.npz``: the exact parameters (read back by :func:`load_terrain`); for tools
+    without monovo, ``heights`` (rows y, columns x) sampled every HEIGHTS_SPACING m over
+    ``bounds``, sample ``[j, i]`` at ``heights_origin + (i, j) * heights_spacing``; and
+    ``g_from_cam`` (n, 4, 4), the camera poses in the terrain's frame G (camera 0's frame,
+    the ground truth's world, is ``g_from_cam[0]``)."""
     x0, y0, x1, y1 = bounds
     xs = x0 + HEIGHTS_SPACING * np.arange(int(math.ceil((x1 - x0) / HEIGHTS_SPACING)) + 1)
     ys = y0 + HEIGHTS_SPACING * np.arange(int(math.ceil((y1 - y0) / HEIGHTS_SPACING)) + 1)
@@ -226,7 +229,7 @@ def terrain_npz_bytes(terrain: Terrain, bounds: tuple[float, float, float, float
         swell=terrain.swell, swell_spacing=np.array(terrain.spacing),
         rock_centre=r.centre, rock_axes=r.axes, rock_angle=r.angle, rock_albedo=r.albedo,
         heights=heights, heights_origin=np.array([x0, y0]),
-        heights_spacing=np.array(HEIGHTS_SPACING))
+        heights_spacing=np.array(HEIGHTS_SPACING), g_from_cam=np.array(g_from_cam))
     return buf.getvalue()
 
 

@@ -347,7 +347,7 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
     if rover:
         renderer = TerrainRenderer(cam, tex, scene.terrain, sun_azimuth=scene.sun_azimuth)
         atomic_write_bytes(out_dir / "terrain.npz",
-                           terrain_npz_bytes(scene.terrain, scene.heights_bounds))
+                           terrain_npz_bytes(scene.terrain, scene.heights_bounds, scene.poses))
     else:
         renderer = GroundRenderer(cam, tex)
     distance = 0.0
