@@ -178,3 +178,58 @@ def test_every_command_takes_q_and_v_in_both_places(command):
     for args in (["-q", "-v", command, "--help"], [command, "-q", "-v", "--help"]):
         r = CliRunner().invoke(main, args)
         assert r.exit_code == 0 and "-q, --quiet" in r.output, (args, r.output)
+
+
+# ----------------------------------------------------------------------------- --config
+
+
+def _config(tmp_path: Path, text: str, name: str = "monovo.yaml") -> str:
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+@pytest.mark.parametrize("where", ["before", "after"])
+def test_config_file_sets_options_and_the_command_line_wins(calls, tmp_path, where):
+    cfg = _config(tmp_path, "threshold: 5\nno-photometric: true\nmax_step: [0.5, 10]\n"
+                            "quiet: true\ntrack:\n  robust: tukey\n  threshold: 7\n"
+                            f"  output: {tmp_path / 'from_config'}\n"
+                            "overlay:\n  fps: 15\n")
+    args = ["track", "seq", "--max-points", "all"]
+    r = CliRunner().invoke(main, ["--config", cfg, *args] if where == "before"
+                           else [*args, "--config", cfg])
+    assert r.exit_code == 0 and r.output == "", r.output  # quiet: true
+    options, _ = calls["track"]
+    # the track section wins over the top level, the command line over both
+    assert options == TrackOptions(threshold=7.0, max_points=ALL_POINTS, max_step_m=0.5,
+                                   max_step_deg=10.0, estimator=EstimatorOptions(
+                                       robust="tukey", photometric=False))
+    _run("track", "seq", "--config", cfg, "--threshold", "9", "-o", str(tmp_path / "o"))
+    assert calls["track"][0].threshold == 9.0
+    # top-level keys apply to every command that has the option; init has no --no-photometric
+    _run("init", "seq", "--config", cfg, "-o", str(tmp_path / "m.npz"))
+    assert calls["init"][0] == TrackOptions(threshold=5.0, max_step_m=None)
+
+
+@pytest.mark.parametrize(("text", "words"), [
+    ("thresold: 5\n", ["unknown key 'thresold'", "did you mean 'threshold'"]),
+    ("track:\n  fps: 15\n", ["unknown key 'track.fps'"]),
+    ("track: 5\n", ["track: expected a mapping"]),
+    ("threshold: abc\n", ["threshold:", "'abc'"]),
+    ("track:\n  max-points: 10\n", ["track.max-points:", "minimum 50"]),
+    ("overwrite: 3\n", ["overwrite:", "expected true or false"]),
+    ("- threshold\n", ["expected a mapping of option names"]),
+    ("threshold: [1\n", ["not valid YAML", "line 2"]),
+])
+def test_config_file_problems_are_one_line_naming_file_and_key(calls, tmp_path, text, words):
+    cfg = _config(tmp_path, text, "bad.yaml")
+    for args in (["--config", cfg, "track", "seq", "-o", "x"],
+                 ["track", "seq", "-o", "x", "--config", cfg]):
+        r = CliRunner().invoke(main, args)
+        assert r.exit_code == 2, r.output
+        assert r.output.startswith(f"Error: {cfg}: ") and r.output.count("\n") == 1, r.output
+        for w in words:
+            assert w in r.output
+    assert "track" not in calls
+    r = CliRunner().invoke(main, ["track", "seq", "-o", "x", "--config", str(tmp_path / "no.yaml")])
+    assert r.exit_code == 2 and "no.yaml: cannot read the config file" in r.output

@@ -19,16 +19,10 @@ from typing import NoReturn
 import click
 
 from monovo_cli import __version__
-from monovo_cli.cli.options import Verbosity, verbosity_options
+from monovo_cli.cli.options import BadInput, Verbosity, config_option, verbosity_options
 from monovo_cli.errors import MonovoError
 
 log = logging.getLogger("monovo_cli")
-
-
-class BadInput(click.ClickException):
-    """A MonovoError at the edge: one line on stderr, exit status 2."""
-
-    exit_code = 2
 
 
 class Terminated(BaseException):
@@ -119,7 +113,8 @@ def log_level(verbosity: Verbosity) -> int:
 
 
 def common(f):
-    """-q/--quiet and -v/--verbose on a command (see :class:`Verbosity`); while it runs,
+    """-q/--quiet, -v/--verbose (see :class:`Verbosity`) and --config (see
+    :func:`~monovo_cli.cli.options.config_defaults`) on a command; while it runs,
     the library logs to stderr at their level and SIGTERM stops it cleanly. The command
     gets the :class:`Verbosity` as its first argument. The ``monovo_cli`` logger's level is
     restored afterwards, so that a command run in-process (CliRunner) leaves no trace."""
@@ -139,7 +134,7 @@ def common(f):
         finally:
             logger.setLevel(saved)
 
-    return verbosity_options(command)
+    return config_option(verbosity_options(command))
 
 
 class _Progress:
@@ -177,6 +172,7 @@ def progress_bar(quiet: bool, unit: str) -> Iterator[_Progress]:
 @click.group(cls=MonovoGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, "--version", prog_name="monovo")
 @verbosity_options
+@config_option
 def main() -> None:
     """Monocular visual odometry over planar ground from intensity differences.
 
