@@ -60,6 +60,49 @@ def test_track_writes_spec_outputs(seq, tmp_path):
     assert traj[1].split(",")[2:] == ["0", "0", "0", "0", "0", "0", "1.0"]
 
 
+def test_track_writes_run_yaml_with_options_and_input_fingerprints(seq, tmp_path):
+    import dataclasses
+    import hashlib
+    import os
+
+    import yaml
+
+    from monovo_cli.core.options import TrackOptions
+
+    out = tmp_path / "out"
+    r = CliRunner().invoke(main, ["track", str(seq), "-o", str(out), "-q", "--max-points", "500",
+                                  "--groundtruth", str(seq / "groundtruth.tum")])
+    assert r.exit_code == 0, r.output
+    run = yaml.safe_load((out / "run.yaml").read_text())
+    assert run["monovo"] == __version__ and run["command"] == "track"
+    assert run["options"]["track"] == dataclasses.asdict(TrackOptions(max_points=500))
+    assert run["options"]["sequence"] == str(seq.resolve())
+    assert run["options"]["skip_bad_frames"] is False and run["options"]["model"] is None
+
+    def sha(p):
+        return hashlib.sha256(p.read_bytes()).hexdigest()
+
+    inputs = run["inputs"]
+    assert inputs["init_yaml"]["sha256"] == sha(seq / "init.yaml")
+    assert inputs["groundtruth"]["sha256"] == sha(seq / "groundtruth.tum")
+    frames = inputs["frames"]
+    assert frames["count"] == 12 and frames["kind"] == "images"
+    assert frames["frame0_sha256"] == sha(seq / "frames" / "frame_000000.png")
+    # the frame list's fingerprint covers names, sizes and mtimes, not the contents
+    last = sorted((seq / "frames").glob("*.png"))[-1]
+    st = last.stat()
+    try:
+        os.utime(last, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+        r = CliRunner().invoke(main, ["track", str(seq), "-o", str(out), "-q", "--overwrite"])
+        assert r.exit_code == 0, r.output
+        again = yaml.safe_load((out / "run.yaml").read_text())["inputs"]["frames"]
+        assert again["list_sha256"] != frames["list_sha256"]
+        assert again["frame0_sha256"] == frames["frame0_sha256"]
+    finally:
+        os.utime(last, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert not list(out.glob(".*tmp"))  # written atomically
+
+
 def test_track_refuses_existing_results_then_overwrites(seq, tmp_path):
     out = tmp_path / "out"
     args = ["track", str(seq), "-o", str(out), "-q"]
@@ -70,10 +113,11 @@ def test_track_refuses_existing_results_then_overwrites(seq, tmp_path):
     assert CliRunner().invoke(main, args + ["--overwrite"]).exit_code == 0
 
 
-def test_track_streams_csv_to_stdout(seq):
+def test_track_streams_csv_to_stdout(seq, tmp_path):
     proc = subprocess.run([sys.executable, "-m", "monovo_cli", "track", str(seq), "-o", "-", "-q"],
-                          capture_output=True, text=True, timeout=120)
+                          capture_output=True, text=True, timeout=120, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
+    assert list(tmp_path.iterdir()) == []  # no files, no run.yaml
     lines = proc.stdout.splitlines()
     assert lines[0].startswith(MOTION_HEADER) and len(lines) == 12
     assert all(line.count(",") == lines[0].count(",") for line in lines)

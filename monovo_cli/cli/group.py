@@ -19,7 +19,8 @@ from typing import NoReturn
 import click
 
 from monovo_cli import __version__
-from monovo_cli.cli.options import BadInput, Verbosity, config_option, verbosity_options
+from monovo_cli.cli.config import config_option
+from monovo_cli.cli.options import BadInput, Verbosity, verbosity_options
 from monovo_cli.errors import MonovoError
 
 log = logging.getLogger("monovo_cli")
@@ -114,7 +115,7 @@ def log_level(verbosity: Verbosity) -> int:
 
 def common(f):
     """-q/--quiet, -v/--verbose (see :class:`Verbosity`) and --config (see
-    :func:`~monovo_cli.cli.options.config_defaults`) on a command; while it runs,
+    :mod:`~monovo_cli.cli.config`) on a command; while it runs,
     the library logs to stderr at their level and SIGTERM stops it cleanly. The command
     gets the :class:`Verbosity` as its first argument. The ``monovo_cli`` logger's level is
     restored afterwards, so that a command run in-process (CliRunner) leaves no trace."""

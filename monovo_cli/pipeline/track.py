@@ -33,6 +33,7 @@ from monovo_cli.io.config import InitConfig, check_frame_size, load_init
 from monovo_cli.io.formats import CovarianceWriter, MotionRow, MotionWriter, trajectory_csv_text, tum_text
 from monovo_cli.io.frames import FrameSequence, find_init_yaml, resolve_sequence
 from monovo_cli.io.model import load_model, save_model
+from monovo_cli.io.run_record import run_record, write_run_record
 
 log = logging.getLogger(__name__)
 
@@ -192,6 +193,13 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
         for name in RESULT_FILES:  # stale results of an earlier run must not survive
             (Path(out_dir) / name).unlink(missing_ok=True)
         _remove_stale_temporaries(Path(out_dir))
+        write_run_record(Path(out_dir), run_record(
+            "track", options, {"sequence": Path(seq), "params": cfg.path,
+                               "topic": topic, "model": model, "mask": mask, "prior": prior,
+                               "covariance": covariance, "groundtruth": groundtruth,
+                               "skip_bad_frames": skip_bad_frames, "overwrite": overwrite},
+            frames, cfg.path, {"model": model, "mask": mask, "prior": prior,
+                               "groundtruth": groundtruth}))
         stream = open(Path(out_dir) / "motion.csv", "w", newline="")
     else:
         stream = sys.stdout
