@@ -119,6 +119,11 @@ def test_mer_spacing_motions_are_recovered(scene, name, g1, tol_m, tol_deg):
     assert dt < tol_m and dr < tol_deg, (name, dt, dr)
     assert fm.inliers >= 100 and fm.inlier_ratio > 0.5
     assert fm.rms_px < 2.0 and fm.plane_consistency > 0.9
+    # the inliers are true matches: the true motion carries each key ray onto its cur ray
+    assert len(fm.key_rays) == len(fm.cur_rays) == fm.inliers
+    Xc = plane.intersect(fm.key_rays) @ gt[:3, :3].T + gt[:3, 3]
+    miss = (Xc[:, :2] / Xc[:, 2:] - fm.cur_rays[:, :2]) * cam.fx
+    assert np.sqrt(np.mean(np.sum(miss ** 2, axis=1))) < 2.0
     # the homography maps keyframe pixels where the true motion puts the ground (in view)
     g = np.arange(8.0, SIZE, 32.0)
     uv0 = np.stack(np.meshgrid(g, g), axis=-1).reshape(-1, 2)

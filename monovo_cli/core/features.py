@@ -111,7 +111,8 @@ CHEAP = FeatureOptions(level=None, features=1000)
 @dataclass(frozen=True)
 class Features:
     """Keypoints of one image: ``uv`` (N, 2) full-resolution pixels as detected (distorted),
-    ``rays`` (N, 3) their undistorted viewing rays (z = 1), ORB ``descriptors`` (N, 32) uint8."""
+    ``rays`` (N, 3) their undistorted viewing rays (z = 1), ``descriptors`` (N, 32) uint8 (ORB;
+    float descriptors are matched by Euclidean distance)."""
 
     uv: np.ndarray
     rays: np.ndarray
@@ -129,7 +130,8 @@ class FeatureMotion:
     keyframe pixels to undistorted current pixels (full resolution, scale 1 at [2, 2]);
     ``matches`` the matches given to RANSAC, ``inliers`` the ones kept; ``rms_px`` the inliers'
     reprojection error under ``cur_from_key`` (undistorted full-resolution pixels);
-    ``plane_consistency`` in (0, 1], 1 for an exact plane homography.
+    ``plane_consistency`` in (0, 1], 1 for an exact plane homography; ``key_rays`` /
+    ``cur_rays`` (inliers, 3) the inliers' undistorted viewing rays (z = 1) in either frame.
     """
 
     cur_from_key: np.ndarray
@@ -138,6 +140,8 @@ class FeatureMotion:
     inliers: int
     rms_px: float
     plane_consistency: float
+    key_rays: np.ndarray
+    cur_rays: np.ndarray
 
     @property
     def inlier_ratio(self) -> float:
@@ -218,15 +222,16 @@ def detect_features(image: np.ndarray, camera: PinholeCamera, *, mask: np.ndarra
 
 
 def _match(key: Features, cur: Features, ratio: float) -> tuple[np.ndarray, np.ndarray]:
-    """Indices (M,), (M,) of matched keyframe / current features."""
-    if len(key) < 2 or len(cur) < 2:
+    """Indices (M,), (M,) of matched keyframe / current features (Hamming distance for
+    binary descriptors such as ORB's, Euclidean for float ones)."""
+    if len(key) < 2 or len(cur) < 2 or key.descriptors.dtype != cur.descriptors.dtype:
         return np.zeros(0, int), np.zeros(0, int)
+    norm = cv2.NORM_HAMMING if key.descriptors.dtype == np.uint8 else cv2.NORM_L2
     if ratio <= 0.0:
-        matches = cv2.BFMatcher(cv2.NORM_HAMMING, crossCheck=True).match(key.descriptors,
-                                                                       cur.descriptors)
+        matches = cv2.BFMatcher(norm, crossCheck=True).match(key.descriptors, cur.descriptors)
         pairs = [(m.queryIdx, m.trainIdx) for m in matches]
     else:
-        knn = cv2.BFMatcher(cv2.NORM_HAMMING).knnMatch(key.descriptors, cur.descriptors, k=2)
+        knn = cv2.BFMatcher(norm).knnMatch(key.descriptors, cur.descriptors, k=2)
         pairs = [(m[0].queryIdx, m[0].trainIdx) for m in knn
                  if len(m) == 2 and m[0].distance < ratio * m[1].distance]
     if not pairs:
@@ -355,7 +360,8 @@ def motion_from_features(key: Features, cur: Features, camera: PinholeCamera, pl
     X_cur = X_key @ T[:3, :3].T + T[:3, 3]
     proj = X_cur[:, :2] / X_cur[:, 2:3] * [K[0, 0], K[1, 1]] + K[:2, 2]
     rms = float(np.sqrt(np.mean(np.sum((proj - uv_cur) ** 2, axis=1))))
-    return FeatureMotion(T, H / H[2, 2], len(ki), count, rms, consistency)
+    return FeatureMotion(T, H / H[2, 2], len(ki), count, rms, consistency, key.rays[ki][inl],
+                         cur.rays[ci][inl])
 
 
 def feature_motion(key_image: np.ndarray, cur_image: np.ndarray, camera: PinholeCamera,
