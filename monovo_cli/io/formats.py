@@ -163,6 +163,12 @@ def read_tum(path: Path) -> tuple[np.ndarray, np.ndarray]:
         line = line.strip()
         if not line or line.startswith("#"):
             continue
+        if not ts and line.startswith("frame,"):
+            what = ("a trajectory CSV" if line.startswith(",".join(TRAJECTORY_COLUMNS[:2]))
+                    else "a motion CSV (relative motions)" if line.startswith(
+                        ",".join(MOTION_COLUMNS[:2])) else "a CSV")
+            raise InputError(f"{path}: is {what}, not a TUM trajectory; use trajectory.tum "
+                             "(the same poses, in TUM format)")
         f = line.replace(",", " ").split()
         if len(f) != 8:
             raise InputError(f"{path}: line {i}: expected 8 numbers "
