@@ -111,8 +111,16 @@ def test_prior_replaces_constant_velocity(drive):
 
 
 def test_max_step_marks_large_steps_lost(drive):
+    """Every step is beyond the bound: no frame is accepted; after ``reinit_after`` lost frames
+    in a row a fresh keyframe is anchored (status reinit), and the reason says why."""
     res = _track(drive, options=TrackOptions(max_step_m=0.01))
-    assert all(r.status == FrameStatus.LOST for r in res[1:])
+    statuses = [r.status for r in res[1:]]
+    assert set(statuses) == {FrameStatus.LOST, FrameStatus.REINIT}
+    assert all("beyond --max-step 0.01 m" in r.reason for r in res[1:])
+    run = 0
+    for s in statuses:  # never more than reinit_after lost frames in a row
+        run = run + 1 if s == FrameStatus.LOST else 0
+        assert run <= TrackOptions().reinit_after
     assert all(np.all(np.isfinite(r.world_from_cam)) for r in res)
 
 

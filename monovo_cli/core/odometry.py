@@ -19,7 +19,7 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Iterable, Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from enum import Enum
 
 import numpy as np
@@ -29,6 +29,7 @@ from monovo_cli.core.estimate import (
     coarse_search,
     estimate_motion,
 )
+from monovo_cli.core.features import CHEAP, feature_motion
 from monovo_cli.core.keyframe import Keyframe, build_keyframe, footprint
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane_fit import PlanePrior, refine_plane_and_motion
@@ -68,6 +69,7 @@ class FrameResult:
 
 
 NOISE_CAP = 12.0  # grey levels: the most current-frame noise the loss checks allow for
+REINIT_NOISE_SHARE = 0.3  # a fresh keyframe needs noise below this share of the contrast
 
 
 def adjoint(T: np.ndarray) -> np.ndarray:
@@ -120,6 +122,9 @@ class Odometry:
         self._recent_msd: deque[float] = deque(maxlen=15)
         self._sigma = 1.0  # noise sigma of the current frame's differences (see _residual_sigma)
         self._prev_image: np.ndarray | None = None
+        self._key_image: np.ndarray | None = None  # the keyframe's image (feature hypothesis)
+        self._key_msd: float | None = None  # msd of the first frame fitted to the keyframe
+        self._lost_run = 0  # frames lost in a row
 
     @property
     def keyframe(self) -> Keyframe | None:
@@ -134,7 +139,7 @@ class Odometry:
         if self._key is None:
             self._key = build_keyframe(index, image, self.camera, self._plane0, self.region,
                                        np.eye(4), self.options, mask=self.mask)
-        self._prev_image = image
+        self._prev_image = self._key_image = image
         n = len(self._key.levels[0].points)
         return FrameResult(index, timestamp, np.eye(4), np.eye(4), 0.0, 0, n, FrameStatus.OK,
                            np.zeros(6), np.zeros((6, 6)), keyframe=self._key.index)
@@ -142,7 +147,7 @@ class Odometry:
     # -- one frame --------------------------------------------------------------------
     def step(self, index: int, timestamp: float, image: np.ndarray,
              prior_motion: np.ndarray | None = None) -> FrameResult:
-        """Estimate frame ``index``: status OK, REANCHORED or LOST.
+        """Estimate frame ``index``: status OK, REANCHORED, REINIT or LOST.
 
         ``prior_motion`` (4x4, T_{k-1}_k, e.g. from wheel odometry) replaces the constant
         velocity as the initial guess.
@@ -157,30 +162,45 @@ class Odometry:
             return self._lost(index, timestamp, "constant or invalid image")
         pyr = build_pyramid(image, len(key.levels))
         self._sigma = self._residual_sigma(key, image)
-        searched = False
-        first_level = self.options.predicted_top_level
-        if prior_motion is not None:
-            guess = se3_inv(prior_motion) @ self._cur_from_key_prev
-        elif self._state is OdometryState.TRACKING:
-            guess = self._velocity @ self._cur_from_key_prev
-        else:
-            guess = self._search(key, pyr, self._cur_from_key_prev)
-            searched, first_level = True, None
-        est = estimate_motion(key.levels, pyr, guess, options=self.options.estimator,
-                              gain=self._gain, bias=self._bias, first_level=first_level)
-        reason = self._failure(est, key)
-        if reason and not searched:
-            retry = estimate_motion(key.levels, pyr, self._search(key, pyr, guess),
-                                    options=self.options.estimator, gain=self._gain,
-                                    bias=self._bias)
-            if self._score(retry) > self._score(est):
-                est = retry
+        est, reason = None, ""
+        if prior_motion is not None or self._state is OdometryState.TRACKING:
+            motion = se3_inv(prior_motion) if prior_motion is not None else self._velocity
+            guess = motion @ self._cur_from_key_prev
+            est = estimate_motion(key.levels, pyr, guess, options=self.options.estimator,
+                                  gain=self._gain, bias=self._bias,
+                                  first_level=self.options.predicted_top_level)
             reason = self._failure(est, key)
+        else:  # standing start, or recovering: no prediction to trust
+            guess = self._cur_from_key_prev
+        if est is None or reason:
+            est, reason = self._capture(key, image, pyr, guess, est, reason)
         if not reason:
             reason = self._step_too_large(orthonormalize(est.cur_from_key))
         if reason:
+            if self._lost_run >= self.options.reinit_after and self._looks_usable(image):
+                return self._reinit(index, timestamp, image, pyr, reason)
             return self._lost(index, timestamp, reason, est)
         return self._accept(index, timestamp, image, pyr, est)
+
+    def _capture(self, key: Keyframe, image: np.ndarray, pyr: list[np.ndarray],
+                 guess: np.ndarray, est: Estimate | None, reason: str) -> tuple[Estimate, str]:
+        """The capture range beyond the prediction: the rotation search around ``guess`` and
+        the feature hypothesis each start the estimator from the top level; the estimate
+        that passes the checks with the most inliers is kept (``est``, failing with
+        ``reason``, competes too)."""
+        starts = [self._search(key, pyr, guess)]
+        if self.options.feature_hypothesis and self._key_image is not None:
+            hyp = feature_motion(self._key_image, image, self.camera, key.plane, mask=self.mask,
+                                 region=self.region, options=CHEAP)
+            if hyp is not None:
+                starts.append(hyp.cur_from_key)
+        for start in starts:
+            cand = estimate_motion(key.levels, pyr, start, options=self.options.estimator,
+                                   gain=self._gain, bias=self._bias)
+            why = self._failure(cand, key)
+            if est is None or (not why, self._score(cand)) > (not reason, self._score(est)):
+                est, reason = cand, why
+        return est, reason
 
     def skip(self, index: int, timestamp: float) -> FrameResult:
         """Frame ``index`` has no usable image: record it as lost at the prediction."""
@@ -214,6 +234,9 @@ class Odometry:
         self._cov_prev = est.covariance
         self._gain, self._bias = gain, bias
         self._recent_msd.append(est.msd)
+        self._lost_run = 0
+        if self._key_msd is None:
+            self._key_msd = est.msd
         if reanchor and self._reanchor(index, image, pyr, world_from_cur, plane_cur):
             status = FrameStatus.REANCHORED
         elif not recovering:  # (a recovering tracker whose new keyframe failed stays so)
@@ -230,6 +253,7 @@ class Odometry:
         self._world_from_prev = world_from_cur
         self._cur_from_key_prev = cur_from_key
         self._state = OdometryState.RECOVERING
+        self._lost_run += 1
         msd = est.msd if est is not None and np.isfinite(est.msd) else 0.0
         its = est.iterations if est is not None else 0
         pts = est.points if est is not None else 0
@@ -272,12 +296,14 @@ class Odometry:
             return "ill-conditioned normal equations"
         if self._score(est) < self.options.min_inliers:
             return "intensity differences do not fit the motion"
-        # msd baseline: the recent good frames (but at least the two images' noise), or before
-        # there are any, the two images' noise
-        noise = 2.0 * self._sigma ** 2
-        baseline = max(float(np.median(self._recent_msd)), noise) if self._recent_msd else noise
-        if est.msd > self.options.msd_factor * max(baseline, 1.0):
-            return "mean squared difference rose sharply"
+        # msd baseline: the recent good frames (but at least the two images' noise). Before
+        # there are any the check does not apply: on real images the plane model's own error
+        # (lens, parallax, lighting) can exceed the noise several times over from frame 1 on.
+        if self._recent_msd:
+            noise = 2.0 * self._sigma ** 2
+            baseline = max(float(np.median(self._recent_msd)), noise, 1.0)
+            if est.msd > self.options.msd_factor * baseline:
+                return "mean squared difference rose sharply"
         if est.finest_iterations >= self.options.estimator.max_iterations:
             return "no convergence within the iteration cap"
         return ""
@@ -296,8 +322,11 @@ class Odometry:
         return ""
 
     def _needs_reanchor(self, est: Estimate, key: Keyframe, cur_from_key: np.ndarray) -> bool:
+        """Points leaving the view, the model leaving the image, or the fit degrading."""
         corners_cur = key.corners @ cur_from_key[:3, :3].T + cur_from_key[:3, 3]
-        return (est.valid_fraction < self.options.reanchor_fraction
+        degraded = self._key_msd is not None and \
+            est.msd > self.options.reanchor_msd_ratio * max(self._key_msd, 1.0)
+        return (degraded or est.valid_fraction < self.options.reanchor_fraction
                 or footprint(self.camera, corners_cur) < self.options.min_footprint)
 
     def _relative_covariance(self, cov_cur: np.ndarray, prev_from_cur: np.ndarray) -> np.ndarray:
@@ -326,7 +355,33 @@ class Odometry:
         self._cov_prev = np.zeros((6, 6))
         self._gain, self._bias = 1.0, 0.0
         self._state = OdometryState.TRACKING
+        self._key_image, self._key_msd = image, None
         return True
+
+    @staticmethod
+    def _looks_usable(image: np.ndarray) -> bool:
+        """Whether a frame may carry a fresh keyframe: its noise well below its contrast (a
+        frame of pure noise, or a blank one, may not)."""
+        contrast = float(image.std())
+        return contrast > 1e-3 and estimate_noise_sigma(image) < REINIT_NOISE_SHARE * contrast
+
+    def _reinit(self, index: int, timestamp: float, image: np.ndarray, pyr: list[np.ndarray],
+                reason: str) -> FrameResult:
+        """Frames stay lost: anchor a fresh keyframe on this one at the predicted pose.
+
+        The plane is the current keyframe's carried to the prediction, or the mounting plane
+        (init.yaml's, relative to the camera) when that one does not meet the region's rays
+        in front of the camera; the gap since the last good frame is bridged by the
+        prediction. A frame that cannot carry a keyframe stays lost."""
+        lost_for = self._lost_run
+        res = self._lost(index, timestamp, reason)
+        cur_from_key = self._cur_from_key_prev
+        for plane in (self._key.plane.in_frame(cur_from_key), self._plane0):
+            if self._reanchor(index, image, pyr, res.world_from_cam, plane):
+                self._lost_run = 0
+                return replace(res, status=FrameStatus.REINIT, keyframe=self._key.index,
+                               reason=f"re-initialised after {lost_for} lost frames ({reason})")
+        return res
 
 
 def track(frames: Iterable[tuple[int, float, np.ndarray | None]], camera: PinholeCamera,

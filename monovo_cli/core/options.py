@@ -31,8 +31,16 @@ class TrackOptions:
     ``coarse_pixels_per_point`` full-resolution pixels (a quarter per level). With a motion
     prediction, estimation starts at pyramid level ``predicted_top_level`` instead of the top
     (the prediction is within a pixel or two).
-    Re-anchor when fewer than ``reanchor_fraction`` of the keyframe's points stay in view
-    or the model covers < ``min_footprint`` of the image.
+    Re-anchor when fewer than ``reanchor_fraction`` of the keyframe's points stay in view,
+    the model covers < ``min_footprint`` of the image, or the fit has degraded: the frame's
+    msd exceeds ``reanchor_msd_ratio`` times the first msd measured against the keyframe
+    (appearance changes, a surface that is not quite the plane) -- before the loss checks fire.
+    Capture range: after a failed prediction, at the standing start and while recovering,
+    the rotation search and (``feature_hypothesis``) an ORB + homography motion over the
+    known plane (:mod:`monovo_cli.core.features`) each start the direct estimator; the best
+    fit wins. After ``reinit_after`` lost frames in a row a fresh keyframe is anchored on the
+    current frame with the mounting plane (status ``reinit``), its pose bridged by the
+    prediction.
     A frame is lost when fewer than ``min_inliers`` of its points agree within the noise,
     its msd exceeds ``msd_factor`` times the recent median, the normal matrix's condition
     number exceeds ``max_condition``, the finest level hits the iteration cap, or its motion
@@ -48,6 +56,9 @@ class TrackOptions:
     min_points: int = 50
     reanchor_fraction: float = 0.6
     min_footprint: float = 0.2
+    reanchor_msd_ratio: float = 2.0
+    feature_hypothesis: bool = True
+    reinit_after: int = 2
     min_inliers: float = 0.3
     msd_factor: float = 6.0
     max_condition: float = 1e7
