@@ -61,6 +61,16 @@ def final_drift(est_world_from_cam: np.ndarray, gt_world_from_cam: np.ndarray) -
     return err, dist, float(np.degrees(np.linalg.norm(so3_log(dR[:3, :3]))))
 
 
+def std_columns(path: Path) -> np.ndarray:
+    """The std_tx..std_rz columns of a motion.csv (N, 6) (m, rad); NaN where empty (lost)."""
+    import csv
+
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    cols = ("std_tx", "std_ty", "std_tz", "std_rx", "std_ry", "std_rz")
+    return np.array([[float(r[c]) if r[c] else np.nan for c in cols] for r in rows])
+
+
 AXES = ("tx (m)", "ty (m)", "tz (m)", "rx (deg)", "ry (deg)", "rz (deg)")
 
 

@@ -30,7 +30,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from benchmarks.common import final_drift, machine, motion_errors  # noqa: E402
+from benchmarks.common import final_drift, machine, motion_errors, std_columns  # noqa: E402
 from monovo_cli.core.odometry import TrackOptions, track  # noqa: E402
 from monovo_cli.io.config import load_init  # noqa: E402
 from monovo_cli.io.formats import read_motion_csv, read_tum  # noqa: E402
@@ -61,16 +61,6 @@ def inject_faults(frames_dir: Path, n_frames: int, seed: int = 0) -> dict[int, s
     return out
 
 
-def _std_columns(path: Path) -> np.ndarray:
-    """The std_tx..std_rz columns of a motion.csv (N, 6); NaN where empty (lost frames)."""
-    import csv
-
-    with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
-    cols = ("std_tx", "std_ty", "std_tz", "std_rx", "std_ry", "std_rz")
-    return np.array([[float(r[c]) if r[c] else np.nan for c in cols] for r in rows])
-
-
 def run_case(root: Path, name: str, frames: int, seed: int) -> dict:
     seq = root / name
     synthesize(seq, preset="drive", frames=frames, noise_var=10.0, seed=seed,
@@ -82,7 +72,7 @@ def run_case(root: Path, name: str, frames: int, seed: int) -> dict:
     err, dist, heading = final_drift(est, gt)
     _, _, status = read_motion_csv(root / f"{name}_out" / "motion.csv")
     status = ["ok"] + status
-    std = np.vstack([np.zeros(6), _std_columns(root / f"{name}_out" / "motion.csv")])
+    std = np.vstack([np.zeros(6), std_columns(root / f"{name}_out" / "motion.csv")])
     typical = np.nanmedian(std[1:], axis=0)
     # flagged: lost, or tracked with a reported std over 3x the typical one (low weight)
     low_weight = [k for k in faults if status[k] != "lost" and np.nanmax(std[k] / typical) > 3.0]

@@ -1,0 +1,141 @@
+"""Ground that is not a plane, rovers that bob: issue 14's acceptance drives, measured.
+
+    python -m benchmarks.terrain                      # 4 drives of 300 frames (~15 min)
+    python -m benchmarks.terrain --frames 100 --cases flat rolling
+
+Each case is a ``monovo synth --preset drive --terrain KIND`` sequence (512x512, noise
+variance 10, rendered by ray casting; the rover's body lies on the ground under its wheels
+and bobs on its suspension, +-2 cm and +-2 deg, frame 0 at a crest of all three; init.yaml
+gives the nominal plane, the body's at frame 0 seen from the mounting, not the true local
+ground):
+
+  flat     flat ground: only the bobbing departs from the plane;
+  rolling  a +-5 cm swell over 2-5 m wavelengths, the body tilting with it;
+  slope    a 6 deg slope crossed with a +-3 cm swell;
+  rocks    flat ground with scattered rocks a few cm to ~20 cm high (they occlude).
+
+Every drive is tracked end to end with default options (``runner.track_sequence``, PNG
+decoding included, on one core), and the ECC peer of ``benchmarks.peers`` runs on the same
+PNGs in the same run (it carries init.yaml's plane with its own motions). Reported per
+method: the final position error (% of the distance), the final heading error (the angle of
+the final pose's rotation error), the scale ratio (estimated / true length of the per-frame
+translations, over the whole drive and over its last third: a creeping scale shows as a
+difference), the mean absolute per-frame errors, lost (monovo) or failed (ECC) frames and
+frames/s (wall and this process's CPU). For monovo also the honesty of the reported standard
+deviations: per axis, the std over the tracked frames of (error / reported std) of the
+motions T_{k-1}_k (1 = honest; the issue asks for 0.5-2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.common import load, machine, one_core, std_columns
+from benchmarks.peers import EccPeer, monovo_on_drive, peer_on_drive
+from monovo_cli.core.options import TrackOptions
+from monovo_cli.io.formats import read_motion_csv
+from monovo_cli.synth.terrain import TERRAINS
+from monovo_cli.synth.write import synthesize
+
+SIZE = (512, 512)
+NOISE_VAR = 10.0
+
+
+def scale_ratios(est: np.ndarray, gt: np.ndarray) -> tuple[float, float]:
+    """Estimated / true length of the per-frame translations ``T_{k-1}_k`` (n, 4, 4): over all
+    motions and over the last third."""
+    le = np.linalg.norm(est[:, :3, 3], axis=1)
+    lg = np.linalg.norm(gt[:, :3, 3], axis=1)
+    last = len(le) - len(le) // 3
+    return float(le.sum() / lg.sum()), float(le[last:].sum() / lg[last:].sum())
+
+
+def std_honesty(errors: np.ndarray, std: np.ndarray) -> np.ndarray:
+    """Per axis (6,): std of error / reported std over the motions with a finite std.
+
+    ``errors`` (n, 6) as ``benchmarks.common.motion_errors`` gives them (m, deg); ``std``
+    (n, 6) from motion.csv (m, rad)."""
+    e = np.array(errors, dtype=float)
+    e[:, 3:] = np.radians(e[:, 3:])
+    ok = np.all(np.isfinite(std), axis=1) & np.all(std > 0, axis=1)
+    return np.std(e[ok] / std[ok], axis=0)
+
+
+def run_case(root: Path, kind: str, frames: int, seed: int) -> dict:
+    """Render one terrain drive, track it with monovo and ECC; the figures of one table row."""
+    seq = root / kind
+    synthesize(seq, preset="drive", terrain=kind, frames=frames, size=SIZE, noise_var=NOISE_VAR,
+               seed=seed)
+    out = root / f"{kind}_out"
+    mono = monovo_on_drive(seq, out, TrackOptions())
+    ecc = peer_on_drive(EccPeer(), seq)
+    _, est, status = read_motion_csv(out / "motion.csv")
+    _, gt, _ = read_motion_csv(seq / "groundtruth_motion.csv")
+    honesty = std_honesty(mono.errors, std_columns(out / "motion.csv"))
+    ecc_est = gt.copy()  # (peer_on_drive keeps ECC's errors, not its motions: est = gt + error)
+    ecc_est[:, :3, 3] += np.nan_to_num(ecc.errors[:, :3])
+    rows = []
+    for r, e, lost in ((mono, est, status.count("lost")), (ecc, ecc_est, ecc.failed)):
+        err, dist, heading = r.drift
+        rows.append({"method": r.name, "distance": dist, "pct": 100 * err / dist,
+                     "heading": heading, "scale": scale_ratios(e, gt), "mean": r.mean_abs(),
+                     "lost": lost, "fps": (r.count / r.seconds, r.count / r.cpu)})
+    return {"kind": kind, "frames": frames, "rows": rows, "honesty": honesty,
+            "reanchored": status.count("reanchored"), "mono": mono}
+
+
+def table(results: list[dict]) -> str:
+    head = ("| terrain | method | final error (% of distance) | heading error (deg) | scale "
+            "(all / last third) | mean abs transl. error (m) | mean abs rot. error (deg) | "
+            "lost (failed) | frames/s wall (CPU) |")
+    lines = [head, "|" + " --- |" * (head.count("|") - 1)]
+    for res in results:
+        for r in res["rows"]:
+            m = r["mean"]
+            lines.append(
+                f"| {res['kind']} ({res['frames']} frames, {r['distance']:.2f} m) | {r['method']} | "
+                f"{r['pct']:.3f} | {r['heading']:.3f} | {r['scale'][0]:.4f} / {r['scale'][1]:.4f} | "
+                f"{m[:3].mean():.2e} | {m[3:].mean():.2e} | {r['lost']} | "
+                f"{r['fps'][0]:.1f} ({r['fps'][1]:.1f}) |")
+    return "\n".join(lines)
+
+
+def honesty_table(results: list[dict]) -> str:
+    lines = ["| terrain | tx | ty | tz | rx | ry | rz | re-anchored |",
+             "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    for res in results:
+        lines.append(f"| {res['kind']} | " + " | ".join(f"{v:.2f}" for v in res["honesty"])
+                     + f" | {res['reanchored']} |")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--frames", type=int, default=300, help="frames per drive")
+    ap.add_argument("--cases", nargs="+", default=list(TERRAINS), choices=TERRAINS)
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+    one_core()
+    print(f"Machine: {machine()}; {load()} at the start\n")
+    print(f"Drives: `monovo synth --preset drive --terrain KIND --frames {args.frames} --seed "
+          f"{args.seed}` ({SIZE[0]}x{SIZE[1]}, noise variance {NOISE_VAR:g}); monovo with "
+          "default options, end to end; ECC on the same PNGs. One core.\n")
+    results = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for kind in args.cases:
+            results.append(run_case(Path(tmp), kind, args.frames, args.seed))
+            print(f"({kind} done, {load()})", flush=True)
+    print()
+    print(table(results))
+    print("\nHonesty of monovo's reported std: per axis, std of (error / reported std) over the "
+          "tracked frames' motions (1 = honest; acceptance 0.5-2)\n")
+    print(honesty_table(results))
+    print(f"\n({load()} at the end.)")
+
+
+if __name__ == "__main__":
+    main()
