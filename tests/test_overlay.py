@@ -260,3 +260,96 @@ def test_plot_plane_coordinates_and_markers():
     assert orange.sum() > 10  # the keyframe marker (and its legend entry)
     still = plot_trajectory(np.array([np.eye(4), np.eye(4)]), plane)  # no motion: no crash
     assert still.shape == (800, 800, 3)
+
+
+# ----------------------------------------------------------------------------- a whole drive
+
+
+@pytest.fixture(scope="module")
+def long_drive(tmp_path_factory):
+    """A 120-frame drive: the first triangle leaves the view after ~40 frames."""
+    root = tmp_path_factory.mktemp("long")
+    synthesize(root / "seq", preset="drive", frames=120, size=(192, 192), noise_var=10.0, seed=3)
+    track_sequence(root / "seq", None, root / "out", TrackOptions())
+    return root / "seq", root / "out"
+
+
+def _orange(bgr: np.ndarray) -> int:
+    """Pixels of the triangle's orange fill in a BGR frame."""
+    return int(np.count_nonzero(bgr[:, :, 2].astype(int) - bgr[:, :, 0] > 60))
+
+
+@pytest.mark.parametrize("trajectory", ["out/trajectory.csv", "seq/groundtruth.tum"])
+def test_every_frame_of_a_long_drive_shows_a_triangle(long_drive, tmp_path, trajectory):
+    """With motion.csv (keyframes known) and without it (a TUM file: re-placed when the
+    triangle leaves the view)."""
+    seq, out = long_drive
+    cfg, plane, region = _setup(seq)
+    first = triangle_on_ground(cfg.camera, plane, None, region)
+    _, gt = read_tum(seq / "groundtruth.tum")
+    assert np.isnan(vertex_errors(cfg.camera, first, gt, gt)[60:]).all()  # the first one is gone
+    r = CliRunner().invoke(main, ["overlay", str(seq), "-t", str(seq.parent / trajectory),
+                                  "-o", str(tmp_path / "png") + "/", "-q"])
+    assert r.exit_code == 0, r.output
+    files = sorted((tmp_path / "png").glob("*.png"))
+    assert len(files) == 120
+    counts = [_orange(cv2.imread(str(f))) for f in files]
+    side = min(region[2] - region[0], region[3] - region[1]) / 3
+    assert min(counts) > 0.15 * side ** 2 * np.sqrt(3) / 4, (int(np.argmin(counts)), min(counts))
+
+
+def test_scaled_and_every_nth_outputs_have_the_right_size_and_count(long_drive, tmp_path):
+    seq, out = long_drive
+    traj = str(out / "trajectory.csv")
+    r = CliRunner().invoke(main, ["overlay", str(seq), "-t", traj, "-o", str(tmp_path / "png") + "/",
+                                  "--scale", "0.5", "--every", "3"])
+    assert r.exit_code == 0, r.output
+    assert "wrote 40 frames" in r.output and "triangles)" in r.output
+    files = sorted((tmp_path / "png").glob("*.png"))
+    assert len(files) == 40 and files[-1].name == "frame_000039.png"
+    frames = [cv2.imread(str(f)) for f in files]
+    assert all(f.shape == (96, 96, 3) for f in frames)
+    assert min(_orange(f) for f in frames) > 50  # a triangle in each, at a quarter of the area
+    gif = tmp_path / "o.gif"
+    r = CliRunner().invoke(main, ["overlay", str(seq), "-t", traj, "-o", str(gif), "-q",
+                                  "--scale", "0.25", "--every", "7"])
+    assert r.exit_code == 0, r.output
+    frames = iio.mimread(gif)
+    assert len(frames) == 18 and frames[0].shape[:2] == (48, 48)  # frames 0, 7, ..., 119
+    r = CliRunner().invoke(main, ["overlay", str(seq), "-t", traj, "-o", str(gif), "--overwrite",
+                                  "--scale", "1.5"])
+    assert r.exit_code == 2 and "--scale" in r.output
+
+
+def test_a_new_triangle_at_each_keyframe_and_when_the_old_one_leaves_the_view(tracked):
+    seq, out = tracked
+    cfg, plane, region = _setup(seq)
+    px = default_triangle_pixels(region)
+    tri = triangle_on_ground(cfg.camera, plane, px, region)
+    r = OverlayRenderer(cfg.camera, plane, tri, region=region, pixels=px)
+    T = pose_from_vectors(np.r_[0.0, 0.0, 0.05], np.zeros(3))
+    assert r.visible(np.eye(4)) == pytest.approx(1.0)
+    assert not r.advance(T, "ok") and r.triangles == 1
+    assert r.advance(T, "reanchored") and r.triangles == 2
+    # the new triangle sits at the same pixels in the keyframe
+    outline = r.triangle_outline(T)
+    np.testing.assert_allclose(np.sort(outline, axis=0), np.sort(px, axis=0), atol=1e-6)
+    ahead = np.cross([1.0, 0.0, 0.0], plane.normal)  # forward along the ground
+    far = pose_from_vectors(3.0 * ahead / np.linalg.norm(ahead), np.zeros(3))  # walked past it
+    assert r.visible(far) < 0.5 and r.advance(far, "ok") and r.visible(far) == pytest.approx(1.0)
+    assert "new triangle" in _text_of(r, seq, far)
+    up = pose_from_vectors(np.zeros(3), np.radians([80.0, 0.0, 0.0]))  # looking at the sky
+    kept = r.triangle.copy()
+    assert not r.advance(up, "reanchored")
+    np.testing.assert_array_equal(r.triangle, kept)
+    assert not OverlayRenderer(cfg.camera, plane, tri).advance(far, "reanchored")  # no pixels
+
+
+def _text_of(renderer, seq, pose):
+    """The text line is drawn, not returned: render twice and compare the band."""
+    from monovo_cli.io.frames import FrameSequence
+
+    img = FrameSequence(seq).read(0).image
+    a = renderer.render(1, img, pose)
+    b = renderer.render(1, img, pose)  # "new triangle" only once
+    return "new triangle" if not np.array_equal(a[:20], b[:20]) else ""

@@ -36,20 +36,35 @@ from monovo_cli.cli.options import (
                    "(green: within the noise, red: 3 sqrt(2) sigma and more).")
 @click.option("--fps", type=click.FloatRange(min=0.1, max=240.0), cls=LibraryDefault,
               default_text=keyword_default("monovo_cli.pipeline.overlay", "overlay_sequence", "fps"))
+@click.option("--scale", type=click.FloatRange(0.0, 1.0, min_open=True), cls=LibraryDefault,
+              default_text=keyword_default("monovo_cli.pipeline.overlay", "overlay_sequence",
+                                           "scale"),
+              help="Resize the output frames by this factor (e.g. 0.5 for a small GIF).")
+@click.option("--every", type=click.IntRange(min=1), cls=LibraryDefault, metavar="N",
+              default_text=keyword_default("monovo_cli.pipeline.overlay", "overlay_sequence",
+                                           "every"),
+              help="Write every N-th frame only (0, N, 2N, ...); --fps stays the rate of the "
+                   "frames written.")
 @overwrite_option("Replace the output if it exists.")
 @common
-def overlay(verbosity, seq, params, topic, trajectory, out, triangle, points, fps, overwrite):
+def overlay(verbosity, seq, params, topic, trajectory, out, triangle, points, fps, scale, every,
+            overwrite):
     """Render the glued triangle: a triangle on the ground moved with the estimated poses.
 
     \b
-    If the estimates are right it stays glued to the ground (the paper's Figs. 10.4-10.7):
+    If the estimates are right it stays glued to the ground (the paper's Figs. 10.4-10.7).
+    A new triangle is placed at every keyframe (re-anchored frame) and whenever the
+    current one leaves the view, so every frame of a long drive shows one:
       monovo track demo -o out
       monovo overlay demo -t out/trajectory.csv -o out/overlay.mp4
+      monovo overlay demo -t out/trajectory.csv -o out/overlay.gif --scale 0.5 --every 2
     """
     from monovo_cli.pipeline.overlay import overlay_sequence
 
     with progress_bar(verbosity.quiet, "frame") as bar:
         s = overlay_sequence(seq, params, trajectory, out, triangle_px=triangle, points=points,
-                             overwrite=overwrite, topic=topic, progress=bar, **given(fps=fps))
+                             overwrite=overwrite, topic=topic, progress=bar,
+                             **given(fps=fps, scale=scale, every=every))
     if not verbosity.quiet:
-        click.echo(f"wrote {s.frames} frames to {s.out} in {s.seconds:.1f} s")
+        click.echo(f"wrote {s.frames} frames to {s.out} in {s.seconds:.1f} s "
+                   f"({s.triangles} triangle{'s' if s.triangles > 1 else ''})")

@@ -24,6 +24,7 @@ class OverlaySummary:
     out: Path
     kind: str
     seconds: float
+    triangles: int = 1
 
 
 def _trajectory_by_frame(path: Path, frames: FrameSequence) -> dict[int, np.ndarray]:
@@ -52,20 +53,28 @@ def _trajectory_by_frame(path: Path, frames: FrameSequence) -> dict[int, np.ndar
 
 def overlay_sequence(seq: Path, params: Path | None, trajectory: Path, out: str | Path, *,
                      triangle_px: np.ndarray | None = None, points: bool = False,
-                     fps: float = 10.0, overwrite: bool = False, topic: str | None = None,
+                     fps: float = 10.0, scale: float = 1.0, every: int = 1,
+                     overwrite: bool = False, topic: str | None = None,
                      progress: Callable[[int, int], None] | None = None) -> OverlaySummary:
     """``monovo overlay``: render the glued triangle into every frame of ``seq``.
 
     ``trajectory`` is a trajectory.csv (or .tum) of the sequence; status and msd come from
     motion.csv beside it when it is there. ``triangle_px`` (3, 2) frame-0 pixels (None: the
-    default triangle). Frames 0 .. the last posed frame are written to ``out`` (.mp4, .gif or
-    a directory of PNGs, :mod:`monovo_cli.io.video`); frames without a pose show no triangle.
-    ``topic`` the image topic of a ROS bag.
+    default triangle); a new triangle is placed at the same pixels at every keyframe (status
+    ``reanchored`` / ``reinit`` in motion.csv) and when the current one leaves the view
+    (:meth:`~monovo_cli.viz.overlay.OverlayRenderer.advance`). Frames 0, ``every``,
+    2 ``every``, ... up to the last posed frame are written to ``out`` (.mp4, .gif or a
+    directory of PNGs, :mod:`monovo_cli.io.video`), resized by ``scale`` (0 < scale <= 1);
+    frames without a pose show no triangle. ``topic`` the image topic of a ROS bag.
     """
     from monovo_cli.io.formats import read_motion_stats
     from monovo_cli.io.video import open_sink
-    from monovo_cli.viz.overlay import OverlayRenderer, triangle_on_ground
+    from monovo_cli.viz.overlay import OverlayRenderer, default_triangle_pixels, triangle_on_ground
 
+    if not 0.0 < scale <= 1.0:
+        raise InputError(f"--scale: expected 0 < scale <= 1, got {scale:g}")
+    if every < 1:
+        raise InputError(f"--every: expected a whole number >= 1, got {every}")
     t0 = time.perf_counter()
     frames, cfg = open_sequence(seq, params, topic=topic)
     trajectory = Path(trajectory)
@@ -74,7 +83,9 @@ def overlay_sequence(seq: Path, params: Path | None, trajectory: Path, out: str 
     stats = read_motion_stats(motion) if motion.is_file() else {}
     plane, region = cfg.plane, cfg.region
     tri = triangle_on_ground(cfg.camera, plane, triangle_px, region)
-    renderer = OverlayRenderer(cfg.camera, plane, tri, region=region, points=points)
+    pixels = default_triangle_pixels(region) if triangle_px is None else triangle_px
+    renderer = OverlayRenderer(cfg.camera, plane, tri, region=region, points=points,
+                               pixels=pixels, scale=scale)
     last = max(poses)
     if len(poses) < len(frames):  # e.g. an interrupted run: rendered, but said
         log.warning("%s: poses for %d of the %d frames of %s; frames without one show no "
@@ -83,14 +94,18 @@ def overlay_sequence(seq: Path, params: Path | None, trajectory: Path, out: str 
     sink = open_sink(out, fps=fps, overwrite=overwrite)
     try:
         for k in range(last + 1):
-            frame = frames.read(k)
             status, msd = stats.get(k, ("start" if k == 0 else None, None))
-            sink.write(renderer.render(k, frame.image, poses.get(k), status=status, msd=msd,
-                                       last=last))
+            if k > 0:
+                renderer.advance(poses.get(k), status)
+            if k % every == 0:
+                frame = frames.read(k)
+                sink.write(renderer.render(k, frame.image, poses.get(k), status=status,
+                                           msd=msd, last=last))
             if progress is not None:
                 progress(k + 1, last + 1)
         sink.close()
     except BaseException:
         sink.abort()
         raise
-    return OverlaySummary(sink.frames, sink.path, sink.kind, time.perf_counter() - t0)
+    return OverlaySummary(sink.frames, sink.path, sink.kind, time.perf_counter() - t0,
+                          renderer.triangles)

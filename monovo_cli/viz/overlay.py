@@ -14,6 +14,13 @@ densified before projection, so they bend as the ground's straight lines do. Fil
 outline are anti-aliased at 1/16 px (``cv2.LINE_AA``, ``shift=4``); pixel centres are
 integers (docs/guide.md "File formats").
 
+Over a long drive the first triangle leaves the view; the renderer then places a new one
+(:meth:`OverlayRenderer.advance`): at every keyframe (a frame whose status is
+``reanchored`` or ``reinit``), and whenever less than ``MIN_VISIBLE`` of the current one is
+in view, at the same image position as the first (the default triangle or ``--triangle``)
+lifted onto the ground with that frame's pose. Each triangle is then glued to its patch of
+ground until the next one, so every frame can be checked.
+
 Optional observation points (``points=True``) are the ground model's points of the frame
 the overlay anchors on (frame 0, then every re-anchored frame) projected with the pose and
 coloured by their intensity residual ``|I_k(pi(T X)) - I_key|``: green when it is within the
@@ -43,6 +50,8 @@ NEAR_FRACTION = 1e-3      # near clipping plane at this fraction of the ground d
 FRUSTUM_MARGIN = 0.25     # clip to the view frustum widened by this share of the image per side
 DISTORTED_EDGE_STEPS = 32  # segments per triangle edge when the lens distorts
 SHIFT = 4                 # fractional bits of the drawing coordinates (1/16 px)
+MIN_VISIBLE = 0.5         # a new triangle when less than this share of the current one is in view
+KEYFRAME_STATUSES = (FrameStatus.REANCHORED, "reinit")  # statuses that start a keyframe
 
 
 @dataclass(frozen=True)
@@ -163,6 +172,29 @@ def project_polygon(camera: PinholeCamera, poly_cam: np.ndarray, near: float) ->
         nxt = np.roll(clipped, -1, axis=0)
         clipped = np.concatenate([p + t * (q - p) for p, q in zip(clipped, nxt)])
     return camera.project(clipped)
+
+
+def polygon_area(uv: np.ndarray) -> float:
+    """Area (px^2) of the simple polygon ``uv`` (N, 2) (shoelace formula); 0 for N < 3."""
+    uv = np.asarray(uv, dtype=float)
+    if len(uv) < 3:
+        return 0.0
+    x, y = uv[:, 0], uv[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+
+
+def visible_fraction(camera: PinholeCamera, poly_cam: np.ndarray, near: float) -> float:
+    """The share (0..1) of the image area of the polygon ``poly_cam`` (N, 3) m (camera
+    coordinates, in front of the near plane) that falls inside the image; 0 when none of it
+    is in front of the camera."""
+    front = clip_polygon(poly_cam, np.array([[0.0, 0.0, 1.0, -near]]))
+    if len(front) < 3:
+        return 0.0
+    whole = polygon_area(camera.project(front))
+    inside = clip_polygon(front, frustum_halfspaces(camera, near, margin=0.0))
+    if whole <= 0.0 or len(inside) < 3:
+        return 0.0
+    return min(1.0, polygon_area(camera.project(inside)) / whole)
 
 
 def project_vertices(camera: PinholeCamera, X_world: np.ndarray,
@@ -294,27 +326,64 @@ class OverlayRenderer:
 
     ``plane`` is the ground in camera-0 coordinates, ``triangle`` (3, 3) m its vertices there,
     ``region`` the ground rectangle (px) of init.yaml; ``max_points`` caps the points drawn
-    (default: one per 150 px^2 of image). Keeps only the anchor points between
-    frames (when ``points``): they are re-picked on frames whose status is ``reanchored`` and
-    when fewer than half of them stay in view.
+    (default: one per 150 px^2 of image). ``pixels`` (3, 2) px: where :meth:`advance` places
+    each new triangle in the image (None: never a new one). ``scale`` resizes the output
+    frames (lines and text keep a readable size). Keeps the current triangle and the anchor
+    points between frames (when ``points``): they are re-picked on frames whose status is
+    ``reanchored`` and when fewer than half of them stay in view.
     """
 
     def __init__(self, camera: PinholeCamera, plane: Plane, triangle: np.ndarray, *,
                  region: tuple[int, int, int, int] | None = None, points: bool = False,
-                 max_points: int | None = None, style: OverlayStyle | None = None) -> None:
+                 max_points: int | None = None, style: OverlayStyle | None = None,
+                 pixels: np.ndarray | None = None, scale: float = 1.0) -> None:
+        if not 0.0 < scale <= 1.0:
+            raise ValueError(f"scale: expected 0 < scale <= 1, got {scale!r}")
         self.camera = camera
         self.plane = plane
         self.triangle = np.asarray(triangle, dtype=float)
+        self.pixels = None if pixels is None else np.asarray(pixels, dtype=float)
         self.region = region or (0, 0, camera.width, camera.height)
         self.points = points
         # about one point per 150 px^2 of image: dense enough to see, sparse enough to read
         self.max_points = max_points or max(100, camera.width * camera.height // 150)
         self.style = style or OverlayStyle()
         self.near = NEAR_FRACTION * plane.distance
+        self.scale = float(scale)
+        self.size = (max(1, int(round(camera.width * scale))),
+                     max(1, int(round(camera.height * scale))))
+        self.triangles = 1  # placed so far
         self._anchor: AnchorPoints | None = None
-        side = min(camera.width, camera.height)
-        self.thickness = max(1, int(round(side / 300.0)))
-        self.dot = max(1, int(round(side / 400.0)))
+        self._new_triangle = False
+        # sizes chosen for the output frame, drawn at full resolution before the resize
+        side = min(self.size)
+        self.thickness = max(1, int(round(max(1, round(side / 300.0)) / self.scale)))
+        self.dot = max(1, int(round(max(1, round(side / 400.0)) / self.scale)))
+
+    def advance(self, world_from_cam: np.ndarray | None, status: str | None = None) -> bool:
+        """Move to a frame with pose ``world_from_cam`` (None: no pose) and ``status``; call
+        it for every frame, drawn or not. Places a new triangle (at ``pixels``, lifted onto the
+        ground with this pose) on a keyframe and when less than ``MIN_VISIBLE`` of the
+        current one is in view; returns whether it did. A pose whose rays at ``pixels`` miss
+        the ground keeps the current triangle."""
+        if self.pixels is None or world_from_cam is None:
+            return False
+        if status not in KEYFRAME_STATUSES and self.visible(world_from_cam) >= MIN_VISIBLE:
+            return False
+        plane_cur = self.plane.in_frame(se3_inv(world_from_cam))
+        X = plane_cur.intersect(self.camera.rays(self.pixels))
+        if not np.all(np.isfinite(X)):
+            return False
+        self.triangle = X @ world_from_cam[:3, :3].T + world_from_cam[:3, 3]
+        self.triangles += 1
+        self._new_triangle = True
+        return True
+
+    def visible(self, world_from_cam: np.ndarray) -> float:
+        """The share (0..1) of the triangle's image area inside the frame with ``world_from_cam``."""
+        cam_from_world = se3_inv(world_from_cam)
+        X = self.triangle @ cam_from_world[:3, :3].T + cam_from_world[:3, 3]
+        return visible_fraction(self.camera, X, self.near)
 
     def triangle_outline(self, world_from_cam: np.ndarray) -> np.ndarray:
         """The triangle's clipped image outline (M, 2) px in the frame with ``world_from_cam``."""
@@ -325,10 +394,12 @@ class OverlayRenderer:
     def render(self, index: int, image: np.ndarray, world_from_cam: np.ndarray | None, *,
                status: str | None = None, msd: float | None = None,
                last: int | None = None) -> np.ndarray:
-        """Frame ``index``: ``image`` (H, W) grey float32 0..255 with the overlay, BGR uint8.
+        """Frame ``index``: ``image`` (H, W) grey float32 0..255 with the overlay, BGR uint8
+        of ``size`` (the frame's size times ``scale``).
 
         ``world_from_cam`` None (no pose) draws no triangle. ``status``/``msd`` (from
-        motion.csv) and ``last`` (the last frame's index) go into the text line.
+        motion.csv) and ``last`` (the last frame's index) go into the text line, and "new
+        triangle" when :meth:`advance` placed one since the last frame drawn.
         """
         out = to_bgr(image)
         if world_from_cam is not None:
@@ -337,6 +408,8 @@ class OverlayRenderer:
             st = self.style
             draw_polygon(out, self.triangle_outline(world_from_cam), fill=st.fill,
                          outline=st.outline, alpha=st.alpha, thickness=self.thickness)
+        if self.size != (out.shape[1], out.shape[0]):
+            out = cv2.resize(out, self.size, interpolation=cv2.INTER_AREA)
         text = f"frame {index}" + (f"/{last}" if last is not None else "")
         if world_from_cam is None:
             text += "  no pose"
@@ -344,6 +417,9 @@ class OverlayRenderer:
             text += f"  {status}"
         if msd is not None and np.isfinite(msd):
             text += f"  msd {msd:.1f}"
+        if self._new_triangle:
+            text += "  new triangle"
+            self._new_triangle = False
         draw_text(out, text, self.style.text)
         return out
 
