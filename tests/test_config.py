@@ -266,11 +266,23 @@ def test_half_forms(tmp_path):
     ([0, 1, "z"], r"ground\.normal\[2\] must be a number"),
     ([0, 0, 0], "must not be zero-length"),
     ([0, 0.0, -1.0], "not in front of the camera"),
-    ([0, 1.0, 0.0], "not in front of the camera"),
 ])
 def test_normal_errors(tmp_path, value, msg):
     with pytest.raises(ConfigError, match=msg):
         load(tmp_path, cfg_with(ground__normal=value))
+
+
+def test_camera_looking_up_at_the_road_is_fine(tmp_path):
+    """A camera pitched 2 deg *up* (normal z < 0) sees the road in the lower image: valid when
+    the region's rays meet the plane in front of it (KITTI's start)."""
+    p = math.radians(-2.0)
+    normal = [0.0, math.cos(p), math.sin(p)]
+    cfg = load(tmp_path, cfg_with(ground__normal=normal, ground__region=[0, 330, 688, 544]))
+    assert cfg.plane.normal[2] < 0
+    level = load(tmp_path, cfg_with(ground__normal=[0, 1.0, 0.0]))  # level, region below centre
+    assert level.plane.normal[2] == 0
+    with pytest.raises(ConfigError, match="not visible in region"):  # the whole frame: sky too
+        load(tmp_path, cfg_with(ground__normal=normal, ground__region=[0, 0, 688, 544]))
 
 
 def test_non_unit_normal_normalised_with_warning(tmp_path, caplog):

@@ -50,6 +50,12 @@ def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, ski
                            topic=topic, progress=bar)
     if not verbosity.quiet:
         click.echo(f"tracked {s.frames} frames in {s.seconds:.1f} s ({s.fps:.1f} frames/s): "
-                   f"mean msd {s.mean_msd:.2f}, {s.reanchored} re-anchored, {s.lost} lost, "
+                   f"mean msd {s.mean_msd:.2f}, {s.reanchored} re-anchored, {s.reinit} re-initialised, "
+                   f"{s.lost} lost, "
                    f"path length {s.distance_m:.3f} m"
                    + ("" if to_stdout else f"; outputs in {out}"), err=to_stdout)
+    if s.mostly_lost:
+        where = "streamed rows kept" if to_stdout else f"outputs kept in {out}"
+        click.echo(f"monovo: {s.lost} of {s.frames - 1} frames lost (more than half); {where}",
+                   err=True)
+        click.get_current_context().exit(3)

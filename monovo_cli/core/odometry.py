@@ -69,6 +69,7 @@ class FrameResult:
 
 
 NOISE_CAP = 12.0  # grey levels: the most current-frame noise the loss checks allow for
+CHANCE_SHARE = 0.5  # a fit leaving half the keyframe's intensity variance is no fit
 REINIT_NOISE_SHARE = 0.3  # a fresh keyframe needs noise below this share of the contrast
 
 
@@ -121,6 +122,7 @@ class Odometry:
         self._gain, self._bias = 1.0, 0.0
         self._recent_msd: deque[float] = deque(maxlen=15)
         self._sigma = 1.0  # noise sigma of the current frame's differences (see _residual_sigma)
+        self._chance_msd = np.inf  # msd of unrelated images (see step)
         self._prev_image: np.ndarray | None = None
         self._key_image: np.ndarray | None = None  # the keyframe's image (feature hypothesis)
         self._key_msd: float | None = None  # msd of the first frame fitted to the keyframe
@@ -162,6 +164,9 @@ class Odometry:
             return self._lost(index, timestamp, "constant or invalid image")
         pyr = build_pyramid(image, len(key.levels))
         self._sigma = self._residual_sigma(key, image)
+        # what unrelated images would give (the brightness fit free): the keyframe points'
+        # intensity variance
+        self._chance_msd = float(np.var(key.levels[0].points.intensity))
         est, reason = None, ""
         if prior_motion is not None or self._state is OdometryState.TRACKING:
             motion = se3_inv(prior_motion) if prior_motion is not None else self._velocity
@@ -296,6 +301,8 @@ class Odometry:
             return "ill-conditioned normal equations"
         if self._score(est) < self.options.min_inliers:
             return "intensity differences do not fit the motion"
+        if est.msd > CHANCE_SHARE * self._chance_msd:
+            return "intensity differences no better than chance"
         # msd baseline: the recent good frames (but at least the two images' noise). Before
         # there are any the check does not apply: on real images the plane model's own error
         # (lens, parallax, lighting) can exceed the noise several times over from frame 1 on.

@@ -11,6 +11,9 @@ are in :mod:`monovo_cli.io.yaml_fields`).
 Instead of ``normal`` + ``distance`` the ground may be given as ``height`` (m),
 ``pitch_deg`` and optional ``roll_deg`` (the convention is in
 :mod:`monovo_cli.geometry.plane`; roll 0 gives ``normal = (0, cos p, sin p)``).
+The optional ``sigma_distance`` (m) and ``sigma_deg`` give the width of the mounting prior:
+how far the ground may depart from this plane in any later camera frame (suspension,
+terrain); absent, the tracker's defaults apply (:mod:`monovo_cli.core.plane_belief`).
 """
 
 from __future__ import annotations
@@ -47,11 +50,12 @@ log = logging.getLogger(__name__)
 
 TOP_KEYS = ("camera", "camera_file", "ground")
 CAMERA_KEYS = ("width", "height", "fx", "fy", "cx", "cy", "distortion")
-GROUND_KEYS = ("normal", "distance", "height", "pitch_deg", "roll_deg", "region")
+GROUND_KEYS = ("normal", "distance", "height", "pitch_deg", "roll_deg", "region",
+               "sigma_distance", "sigma_deg")
+MAX_SIGMA_DEG = 45.0  # ground.sigma_deg: a wider prior on the tilt says nothing
 
 MAX_IMAGE_SIDE = 100_000        # px; larger is certainly a typo
 MIN_REGION_FRACTION = 0.01      # the ground region must cover >= 1% of the image
-MIN_NORMAL_Z = 1e-3             # normal . optical axis: the plane must lie in front
 MIN_RAY_DOT = 1e-6              # n . ray at a region pixel: the ray must hit the plane
 MAX_DEPTH_RATIO = 1e4           # region depth / plane distance: beyond this, too oblique
 UNIT_TOLERANCE = 1e-6           # |normal| further than this from 1 is normalised (warning)
@@ -66,13 +70,17 @@ class InitConfig:
 
     ``plane`` is the ground in camera-0 coordinates; ``region`` the image rectangle
     ``(x0, y0, x1, y1)`` (px, x1 and y1 exclusive) the ground model covers at frame 0 (the
-    whole frame when init.yaml gives none).
+    whole frame when init.yaml gives none). ``sigma_distance`` (m) and ``sigma_deg``: the
+    mounting prior's width (``ground.sigma_distance``, ``ground.sigma_deg``), None when
+    init.yaml does not give it.
     """
 
     camera: PinholeCamera
     plane: Plane
     region: Region
     path: Path
+    sigma_distance: float | None = None
+    sigma_deg: float | None = None
 
 
 # ----------------------------------------------------------------------------- parsing
@@ -210,6 +218,19 @@ def _region(name: str, value: Any, width: int, height: int) -> Region:
     return (x0, y0, x1, y1)
 
 
+def _sigmas(name: str, g: dict) -> tuple[float | None, float | None]:
+    """``ground.sigma_distance`` (m, > 0) and ``ground.sigma_deg`` (in (0, MAX_SIGMA_DEG])."""
+    sd = sdeg = None
+    if g.get("sigma_distance") is not None:
+        sd = positive(name, "ground.sigma_distance", g["sigma_distance"])
+    if g.get("sigma_deg") is not None:
+        sdeg = positive(name, "ground.sigma_deg", g["sigma_deg"])
+        if sdeg > MAX_SIGMA_DEG:
+            raise fail(name, f"ground.sigma_deg must be at most {MAX_SIGMA_DEG:g} (degrees), "
+                              f"got {show(g['sigma_deg'])}")
+    return sd, sdeg
+
+
 def _ground_section(name: str, value: Any, camera: PinholeCamera) -> tuple[Plane, Region]:
     g = mapping(name, "ground", value, "normal + distance (or height + pitch_deg) [+ region]")
     check_keys(name, g, GROUND_KEYS, "ground.")
@@ -248,12 +269,12 @@ def _ground_section(name: str, value: Any, camera: PinholeCamera) -> tuple[Plane
 
 
 def _check_visible(name: str, camera: PinholeCamera, plane: Plane, region: Region) -> None:
-    """The plane must lie in front of the camera and be hit by every ray of the region."""
+    """Every ray of the region must meet the plane in front of the camera.
+
+    That is the whole condition: a camera looking level or slightly up at a road (normal z
+    <= 0) is fine when the region is the part of the image that shows the road.
+    """
     n = plane.normal
-    if n[2] <= MIN_NORMAL_Z:
-        raise fail(name, f"the ground plane is not in front of the camera (normal z = {n[2]:.3g}, "
-                          f"must be > {MIN_NORMAL_Z:g}: the normal points from the camera to the "
-                          "ground); check normal/pitch_deg")
     x0, y0, x1, y1 = region
     # Sample the region's border (pixel centres): corners suffice without distortion,
     # where n . ray is affine in the pixel; the edge samples cover distorted cameras.
@@ -276,6 +297,10 @@ def _check_visible(name: str, camera: PinholeCamera, plane: Plane, region: Regio
         dots = rays @ n
     worst = int(np.argmin(dots))
     u, v = int(border[worst, 0]), int(border[worst, 1])
+    if not np.any(dots > MIN_RAY_DOT):
+        raise fail(name, f"the ground plane is not in front of the camera: no ray of region {shown} "
+                          "meets it (the normal points from the camera to the ground); check "
+                          "normal/pitch_deg")
     if not dots[worst] > MIN_RAY_DOT:
         raise fail(name, f"the ground plane is not visible in region {shown} (behind the camera or "
                           f"parallel to the view at pixel ({u}, {v})); check normal/pitch_deg, or "
@@ -287,7 +312,8 @@ def _check_visible(name: str, camera: PinholeCamera, plane: Plane, region: Regio
                           "ground.region's top edge down")
 
 
-def _parse(data: Any, name: str, base_dir: Path) -> tuple[PinholeCamera, Plane, Region]:
+def _parse(data: Any, name: str, base_dir: Path
+           ) -> tuple[PinholeCamera, Plane, Region, tuple[float | None, float | None]]:
     if data is None:
         raise fail(name, "the file is empty; it needs 'camera:' and 'ground:' sections")
     if not isinstance(data, dict):
@@ -304,7 +330,7 @@ def _parse(data: Any, name: str, base_dir: Path) -> tuple[PinholeCamera, Plane, 
     else:
         camera = _camera_info(name, base_dir, data["camera_file"])
     plane, region = _ground_section(name, data["ground"], camera)
-    return camera, plane, region
+    return camera, plane, region, _sigmas(name, data["ground"])
 
 
 # ----------------------------------------------------------------------------- public
@@ -317,8 +343,9 @@ def load_init(path: Path) -> InitConfig:
     if path.is_dir():
         raise fail(name, "is a directory; expected the init.yaml file")
     data = read_yaml(path, name, "the init file")
-    camera, plane, region = _parse(data, name, path.parent)
-    return InitConfig(camera=camera, plane=plane, region=region, path=path)
+    camera, plane, region, (sigma_distance, sigma_deg) = _parse(data, name, path.parent)
+    return InitConfig(camera=camera, plane=plane, region=region, path=path,
+                      sigma_distance=sigma_distance, sigma_deg=sigma_deg)
 
 
 def check_frame_size(cfg: InitConfig, width: int, height: int, frame_path: Path) -> None:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -24,6 +25,7 @@ from monovo_cli.geometry.lie import make_pose, matrix_from_quat, quat_from_matri
 MOTION_COLUMNS = ("frame", "tx", "ty", "tz", "rx", "ry", "rz", "msd", "iterations", "points",
                   "status")
 STD_COLUMNS = ("std_tx", "std_ty", "std_tz", "std_rx", "std_ry", "std_rz")
+REASON_COLUMN = "reason"  # last: why a frame is lost or reinit (empty otherwise)
 TRAJECTORY_COLUMNS = ("frame", "timestamp", "tx", "ty", "tz", "qx", "qy", "qz", "qw")
 MAX_FRAME = 2**53  # frame numbers beyond this are not exact in a float (and overflow int64 soon)
 MAX_ROTVEC_DEG = 1e6  # larger rotation-vector components are garbage (and overflow so3_exp)
@@ -48,8 +50,9 @@ class MotionRow:
     points: int
     status: FrameStatus | str
     std: np.ndarray | None = None  # (6,) std of (tx, ty, tz, rx, ry, rz), m and rad
+    reason: str = ""  # why the frame is lost or reinit; one line, no commas or quotes
 
-    def fields(self, with_std: bool) -> list[str]:
+    def fields(self, with_std: bool, with_reason: bool = False) -> list[str]:
         t = self.prev_from_cur[:3, 3]
         r = np.degrees(so3_log(self.prev_from_cur[:3, :3]))
         out = [str(self.frame), *(fmt(v) for v in t), *(fmt(v) for v in r), fmt(self.msd),
@@ -58,21 +61,25 @@ class MotionRow:
             s = self.std if self.std is not None else np.full(6, np.nan)
             s = np.concatenate([s[:3], np.degrees(s[3:])])
             out += [fmt(v) if math.isfinite(v) else "" for v in s]
+        if with_reason:
+            out.append(re.sub(r'[,"\r\n]+', ";", self.reason))
         return out
 
 
 class MotionWriter:
     """Streams motion.csv rows to a text stream, header first, flushing every row."""
 
-    def __init__(self, stream: IO[str], *, with_std: bool = True) -> None:
+    def __init__(self, stream: IO[str], *, with_std: bool = True, with_reason: bool = False) -> None:
         self._stream = stream
         self._with_std = with_std
-        cols = MOTION_COLUMNS + (STD_COLUMNS if with_std else ())
+        self._with_reason = with_reason
+        cols = MOTION_COLUMNS + (STD_COLUMNS if with_std else ()) + \
+            ((REASON_COLUMN,) if with_reason else ())
         self._stream.write(",".join(cols) + "\n")
         self._stream.flush()
 
     def write(self, row: MotionRow) -> None:
-        self._stream.write(",".join(row.fields(self._with_std)) + "\n")
+        self._stream.write(",".join(row.fields(self._with_std, self._with_reason)) + "\n")
         self._stream.flush()
 
 

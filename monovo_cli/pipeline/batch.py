@@ -33,7 +33,6 @@ from typing import Any
 from monovo_cli.errors import MonovoError, OutputError
 from monovo_cli.pipeline.batch_job import (
     DONE_FILE,
-    SUMMARY_FILE,
     THREAD_VARIABLES,
     _result,
     available_cores,
@@ -44,8 +43,8 @@ from monovo_cli.pipeline.batch_job import (
     normalize_options,
     sequence_name,
     track_one,
-    write_summary,
 )
+from monovo_cli.pipeline.batch_summary import SUMMARY_FILE, write_summary
 
 log = logging.getLogger(__name__)
 

@@ -1,11 +1,11 @@
-"""One sequence of a batch: finding sequences, tracking one with its done marker, the summary table.
+"""One sequence of a batch: finding sequences, tracking one with its done marker.
+
+The summary table is :mod:`monovo_cli.pipeline.batch_summary`.
 """
 
 from __future__ import annotations
 
-import csv
 import hashlib
-import io
 import json
 import logging
 import os
@@ -26,9 +26,6 @@ if TYPE_CHECKING:
 FRAMES_SUBDIR = "frames"  # as monovo_cli.io.frames (not imported here: it loads OpenCV)
 INIT_FILE = "init.yaml"
 DONE_FILE = "done.json"
-SUMMARY_FILE = "summary.csv"
-SUMMARY_COLUMNS = ("sequence", "frames", "status", "frames_per_s", "mean_msd", "lost", "error",
-                   "reanchored", "distance_m", "seconds")
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                     "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
 DONE_FORMAT = 2  # 2: options as dataclasses.asdict(JobOptions), every tracking setting
@@ -308,6 +305,9 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: dict[str, Any] 
         from monovo_cli.io.atomic import atomic_write_text
 
         atomic_write_text(done, json.dumps(marker, indent=1, sort_keys=True) + "\n")
+        if summary.mostly_lost:  # outputs kept, as monovo track's exit status 3
+            return _result(seq_dir, out_dir, error=f"{summary.lost} of {summary.frames - 1} "
+                           "frames lost (more than half)", error_kind="lost", **stats)
         return _result(seq_dir, out_dir, status="ok", **stats)
     except MonovoError as exc:
         log.debug("%s failed", seq_dir, exc_info=True)
@@ -364,37 +364,3 @@ def done_result(seq_dir: Path, out_dir: Path) -> dict[str, Any]:
     """The result dict of a complete sequence (status ``skipped``), from its ``done.json``."""
     stats = json.loads((Path(out_dir) / DONE_FILE).read_text())["result"]
     return _result(seq_dir, out_dir, status="skipped", worker="", **stats)
-
-
-# --------------------------------------------------------------------------- summary
-
-
-def _cell(value: Any, spec: str) -> str:
-    return "" if value is None else format(value, spec)
-
-
-def summary_rows(results: Sequence[dict[str, Any]]) -> list[list[str]]:
-    """``summary.csv`` rows (:data:`SUMMARY_COLUMNS`) of result dicts whose ``sequence`` is
-    the name to show."""
-    rows = []
-    for r in results:
-        error = " ".join(str(r.get("error") or "").split())  # one line, whatever it held
-        rows.append([r["sequence"], _cell(r.get("frames"), "d"), r["status"],
-                     _cell(r.get("fps"), ".2f"), _cell(r.get("mean_msd"), ".4f"),
-                     _cell(r.get("lost"), "d"), error, _cell(r.get("reanchored"), "d"),
-                     _cell(r.get("distance_m"), ".4f"), _cell(r.get("seconds"), ".2f")])
-    return rows
-
-
-def write_summary(path: Path, results: Sequence[dict[str, Any]]) -> None:
-    """Write ``summary.csv`` atomically: a header, then one row per result (see
-    :func:`summary_rows`); status ``ok``, ``skipped`` (complete from an earlier run, its
-    figures from then), ``failed`` (``error`` says why) or ``pending`` (not run: the batch
-    was interrupted)."""
-    from monovo_cli.io.atomic import atomic_write_text
-
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(SUMMARY_COLUMNS)
-    w.writerows(summary_rows(results))
-    atomic_write_text(Path(path), buf.getvalue())

@@ -49,6 +49,12 @@ class TrackSummary:
     reanchored: int
     distance_m: float
     out_dir: Path | None
+    reinit: int = 0
+
+    @property
+    def mostly_lost(self) -> bool:
+        """More than half of the tracked frames (k >= 1) lost: ``monovo track`` exits 3."""
+        return self.lost > 0.5 * max(self.frames - 1, 0)
 
     @property
     def fps(self) -> float:
@@ -212,11 +218,11 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
         atomic_write_text(Path(out_dir) / "trajectory.csv", trajectory_csv_text(idx, ts, poses))
         atomic_write_text(Path(out_dir) / "trajectory.tum", tum_text(ts, poses))
 
-    msds, lost, reanchored = [], 0, 0
+    msds, lost, reanchored, reinit = [], 0, 0, 0
     cov_writer = None
     t0 = time.perf_counter()
     try:
-        writer = MotionWriter(stream, with_std=True)
+        writer = MotionWriter(stream, with_std=True, with_reason=True)
         cov_writer = CovarianceWriter(_open_output(Path(covariance))) if covariance else None
         tracked = track(_read_frames(frames, skip_bad_frames, out_dir), cfg.camera, cfg.plane,
                         cfg.region, options, mask=usable, first_keyframe=first_key, priors=priors)
@@ -234,6 +240,9 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                     msds.append(res.msd)
                     lost += res.status == FrameStatus.LOST
                     reanchored += res.status == FrameStatus.REANCHORED
+                    reinit += res.status == FrameStatus.REINIT
+                    if res.reason:
+                        log.info("frame %d %s: %s", res.index, res.status, res.reason)
                     dist += float(np.linalg.norm(res.world_from_cam[:3, 3] - prev[:3, 3]))
                 prev = res.world_from_cam
                 if checkpoint_every and len(results) % checkpoint_every == 0:
@@ -251,7 +260,7 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     if out_dir is not None:
         _write_trajectory_plot(Path(out_dir), cfg.plane, results, gt_poses)
     return TrackSummary(len(results), float(np.mean(msds)) if msds else 0.0, seconds, lost,
-                        reanchored, dist, Path(out_dir) if out_dir is not None else None)
+                        reanchored, dist, Path(out_dir) if out_dir is not None else None, reinit)
 
 
 def _read_frames(frames: FrameSequence, skip_bad_frames: bool,
@@ -308,7 +317,8 @@ def _open_output(path: Path):
 
 def _row(res: FrameResult) -> MotionRow:
     return MotionRow(frame=res.index, prev_from_cur=res.prev_from_cur, msd=res.msd,
-                     iterations=res.iterations, points=res.points, status=res.status, std=res.std)
+                     iterations=res.iterations, points=res.points, status=res.status, std=res.std,
+                     reason=res.reason)
 
 
 def _write_trajectory_plot(out_dir: Path, plane: Plane, results: list,
