@@ -219,9 +219,52 @@ def _read_only_dir(tmp: Path, seq: Path) -> None:  # noqa: ARG001
     d.chmod(0o555)
 
 
+_MOTION_HEADER = "frame,tx,ty,tz,rx,ry,rz,msd,iterations,points,status\n"
+
+
 def _results_exist(tmp: Path, seq: Path) -> None:  # noqa: ARG001
     (tmp / "out").mkdir()
-    (tmp / "out" / "motion.csv").write_text("frame,tx,ty,tz,rx,ry,rz,msd,iterations,points,status\n")
+    (tmp / "out" / "motion.csv").write_text(_MOTION_HEADER + "1,0,0,0.05,0,0,0,20.5,4,4000,ok\n")
+
+
+def _failed_run(tmp: Path, seq: Path) -> None:  # noqa: ARG001
+    """What a run that failed before its first tracked frame leaves: a header-only motion.csv
+    and frame 0's trajectory."""
+    (tmp / "out").mkdir()
+    (tmp / "out" / "motion.csv").write_text(_MOTION_HEADER)
+    (tmp / "out" / "trajectory.csv").write_text("frame,timestamp,tx,ty,tz,qx,qy,qz,qw\n"
+                                                "0,0,0,0,0,0,0,0,1.0\n")
+    (tmp / "out" / "trajectory.tum").write_text("0 0 0 0 0 0 0 1.0\n")
+
+
+def _times_beside(text: str) -> Callable[[Path, Path], None]:
+    """times.txt beside frames/ (``text``) and inside it (0, 1, 2, ...)."""
+    def setup(tmp: Path, seq: Path) -> None:
+        copy = _copy(tmp, seq)
+        (copy / "times.txt").write_text(text)
+        (copy / "frames" / "times.txt").write_text("".join(f"{k}\n" for k in range(BASE_FRAMES)))
+    return setup
+
+
+def _model_of(other_seed: int | None = None, **options) -> Callable[[Path, Path], None]:
+    """``tmp/model.npz`` built by init from ``seq`` (or from a sequence of another seed)."""
+    def setup(tmp: Path, seq: Path) -> None:
+        from monovo_cli.core.options import TrackOptions
+        from monovo_cli.pipeline.track import init_model
+        from monovo_cli.synth.write import synthesize
+
+        src = seq
+        if other_seed is not None:
+            src = tmp / "other"
+            synthesize(src, preset="drive", frames=2, size=(BASE_SIZE, BASE_SIZE), seed=other_seed)
+        init_model(src, None, tmp / "model.npz", TrackOptions(**options))
+    return setup
+
+
+def _groundtruth_shifted(tmp: Path, seq: Path) -> None:
+    lines = (seq / "groundtruth.tum").read_text().splitlines()
+    (tmp / "gt.tum").write_text("".join(f"{float(ln.split()[0]) + 100} {ln.split(' ', 1)[1]}\n"
+                                        for ln in lines))
 
 
 def _all(*setups: Callable[[Path, Path], None]) -> Callable[[Path, Path], None]:
@@ -372,6 +415,14 @@ CASES: list[Case] = [
        _times("0.0\nabc\n0.2\n0.3\n0.4\n0.5\n")),
     _c("times-nan", "sequence", "times.txt with nan", TRACK_COPY, 2,
        ("times.txt", "line 4", "finite"), _times("0.0\n0.1\n0.2\nnan\n0.4\n0.5\n")),
+    _c("times-beside-differ", "sequence", "times.txt beside frames/ and in it, differing",
+       TRACK_COPY, 2, ("times.txt", "differ", "frame 1", "keep one"),
+       _times_beside(_increasing(BASE_FRAMES)),
+       note="one times.txt beside frames/ alone is used"),
+    _c("groundtruth-other-seq", "sequence", "--groundtruth of another sequence (its times)",
+       (*T, "{seq}", *OUT, "--groundtruth", "{tmp}/gt.tum"), 2,
+       ("gt.tum", "timestamps", "ground truth of these frames"), _groundtruth_shifted,
+       note="one matching only some frames is drawn for those, with a warning"),
     # --- init.yaml ---------------------------------------------------------------------
     _c("init-missing", "init.yaml", "-p names a file that does not exist",
        (*T, "{seq}", "-p", "{tmp}/missing.yaml", *OUT), 2, ("missing.yaml", "cannot read",
@@ -481,6 +532,9 @@ CASES: list[Case] = [
     _c("out-not-writable", "outputs", "output directory not writable",
        (*T, "{seq}", "-o", "{tmp}/ro"), 2, ("not writable", "permission denied"), _read_only_dir,
        note="as root, where permissions do not bind, /sys stands in"),
+    _c("out-failed-run", "outputs", "output directory holding a failed run's header-only "
+       "motion.csv", (*T, "{seq}", *OUT), 0, ("tracked 6 frames",), _failed_run,
+       note="no frame was tracked there: nothing to keep, so the rerun is not refused"),
     _c("out-is-file", "outputs", "-o names a file", (*T, "{seq}", "-o", "{tmp}/f.txt"), 2,
        ("f.txt", "not a directory", "give -o a directory"), _write("f.txt", "x")),
     _c("out-under-file", "outputs", "-o below a file (f.txt/out)",
@@ -491,6 +545,15 @@ CASES: list[Case] = [
     _c("out-disk-full", "outputs", "-o - into a full device (stdout is /dev/full)",
        (*T, "{seq}", "-o", "-"), 2, ("cannot write the outputs", "no space left", "free some space"),
        stdout_to="/dev/full"),
+    _c("covariance-no-dir", "outputs", "--covariance in a directory that does not exist",
+       (*T, "{seq}", *OUT, "--covariance", "{tmp}/no/cov.csv"), 2,
+       ("no/cov.csv", "no such directory"),
+       note="checked before anything is written: no output folder is left behind"),
+    _c("covariance-dash", "outputs", "--covariance - (stdout)",
+       (*T, "{seq}", *OUT, "--covariance", "-"), 2, ("--covariance -", "not streamed")),
+    _c("model-out-exists", "outputs", "init -o names an existing model (no --overwrite)",
+       ("init", "{seq}", "-o", "{tmp}/model.npz"), 2, ("model.npz", "already exists",
+                                                      "--overwrite"), _model_of()),
     _c("model-missing", "outputs", "--model file does not exist",
        (*T, "{seq}", *OUT, "--model", "{tmp}/model.npz"), 2, ("model.npz", "cannot read model")),
     _c("model-not-model", "outputs", "--model is not a model (init.yaml)",
@@ -498,6 +561,17 @@ CASES: list[Case] = [
     _c("model-other-size", "outputs", "--model built for frames of another size",
        (*T, "{seq}", *OUT, "--model", "{tmp}/model.npz"), 2, ("model.npz", "96x96", "128x128", "monovo init"),
        _model_other_size),
+    _c("model-other-seq", "outputs", "--model built from another sequence's frame 0",
+       (*T, "{seq}", *OUT, "--model", "{tmp}/model.npz"), 2,
+       ("model.npz", "another frame 0", "monovo init"), _model_of(other_seed=9)),
+    _c("model-other-plane", "outputs", "--model built with another init.yaml (plane)",
+       (*T, "{seq}", *P, *OUT, "--model", "{tmp}/model.npz"), 2,
+       ("model.npz", "another ground plane", "init.yaml"),
+       _all(_model_of(), _yaml_edit(("distance: 1.5", "distance: 1.6")))),
+    _c("model-other-options", "outputs", "--model with another --max-points than init's",
+       (*T, "{seq}", *OUT, "--model", "{tmp}/model.npz", "--max-points", "600"), 2,
+       ("--max-points 600", "differs from the model's (500)", "monovo init"),
+       _model_of(max_points=500)),
     # --- usage ---------------------------------------------------------------------------
     _c("usage-no-output", "usage", "track without -o", (*T, "{seq}"), 2,
        ("missing option", "-o")),
@@ -511,6 +585,13 @@ CASES: list[Case] = [
        2, ("no such option", "--fast")),
     _c("synth-bad-size", "usage", "synth --size 12", ("synth", "{tmp}/s", "--size", "12"), 2,
        ("--size", "WxH")),
+    _c("config-unknown-key", "usage", "--config with an unknown key",
+       (*T, "{seq}", *OUT, "--config", "{tmp}/monovo.yaml"), 2,
+       ("monovo.yaml", "unknown key 'track.thresold'", "did you mean 'threshold'"),
+       _write("monovo.yaml", "track:\n  thresold: 5\n")),
+    _c("config-bad-value", "usage", "--config with a value the option refuses",
+       (*T, "{seq}", *OUT, "--config", "{tmp}/monovo.yaml"), 2,
+       ("monovo.yaml", "max-points", "minimum 50"), _write("monovo.yaml", "max-points: 10\n")),
     _c("synth-out-not-empty", "usage", "synth into a non-empty directory",
        ("synth", "{tmp}/s"), 2, ("already exists", "--overwrite"), _write("s/x.txt", "x")),
     # --- overlay -------------------------------------------------------------------------
@@ -544,6 +625,9 @@ CASES: list[Case] = [
     _c("overlay-out-exists", "overlay", "the output exists (no --overwrite)",
        (*OV, *OV_T, "-o", "{tmp}/ov.mp4"), 2, ("ov.mp4", "--overwrite"),
        _all(_tracked_setup, _write("ov.mp4", "x")), needs=("overlay",)),
+    _c("overlay-bad-scale", "overlay", "--scale 0",
+       (*OV, *OV_T, "-o", "{tmp}/ov.gif", "--scale", "0"), 2, ("--scale", "0"),
+       needs=("overlay",)),
     _c("overlay-bad-triangle", "overlay", "--triangle with 3 numbers",
        (*OV, *OV_T, "-o", "{tmp}/ov.mp4", "--triangle", "1,2,3"), 2, ("--triangle", "6 numbers"),
        _tracked_setup, needs=("overlay",)),

@@ -303,6 +303,11 @@ def track_options(names: tuple[str, ...]):
     return decorate
 
 
+#: --mask: pixels never used (init, track, batch).
+mask_option = click.option("--mask", type=click.Path(path_type=Path), default=None,
+                           help="PNG of the frame size; its non-zero pixels are never used.")
+
+
 def side_inputs(*, batch: bool = False):
     """--mask, --prior and --covariance (track, batch); with ``batch``, --prior and
     --covariance name a file inside each sequence / output folder."""
@@ -311,11 +316,10 @@ def side_inputs(*, batch: bool = False):
     def decorate(f):
         f = click.option("--covariance", type=click.Path(path_type=Path), default=None,
                          callback=check, help="Write every frame's 6x6 covariance of (tx..rz) "
-                                              "(m, rad) to this CSV.")(f)
+                                              "(m, deg, as motion.csv) to this CSV.")(f)
         f = click.option("--prior", type=click.Path(path_type=Path), default=None,
                          callback=check, help="A motion CSV (e.g. wheel odometry) used as each "
                                               "frame's initial guess.")(f)
-        return click.option("--mask", type=click.Path(path_type=Path), default=None,
-                            help="PNG of the frame size; its non-zero pixels are never used.")(f)
+        return mask_option(f)
 
     return decorate

@@ -127,14 +127,15 @@ def _span(ts: np.ndarray) -> str:
 
 
 def match_timestamps(ts_est: np.ndarray, ts_gt: np.ndarray, *, max_dt: float | None = None,
-                     names: tuple[str, str] = ("estimate", "ground truth")
+                     names: tuple[str, str] = ("estimate", "ground truth"),
+                     hint: str = "--max-dt sets the tolerance"
                      ) -> tuple[np.ndarray, np.ndarray]:
     """Index arrays ``(i_est, i_gt)`` pairing each estimated pose with the true pose nearest
     in time, within ``max_dt`` s (None: :func:`default_max_dt`), in the estimate's time order.
 
     Poses with no partner within ``max_dt`` are left out (a partial run); a true pose nearest
     to two estimated ones goes to the closer. InputError if either holds a timestamp twice
-    or no pose matches.
+    or no pose matches (the message ends with ``hint``).
     """
     ts_est, ts_gt = np.asarray(ts_est, dtype=float), np.asarray(ts_gt, dtype=float)
     for ts, name in ((ts_est, names[0]), (ts_gt, names[1])):
@@ -162,7 +163,7 @@ def match_timestamps(ts_est: np.ndarray, ts_gt: np.ndarray, *, max_dt: float | N
     if not keep.any():
         raise InputError(f"none of the {len(se)} timestamps of {names[0]} ({_span(se)}) is "
                          f"within {tol:g} s of one of {names[1]} ({_span(sg)}); is it the "
-                         "ground truth of this sequence? (--max-dt sets the tolerance)")
+                         f"ground truth of this sequence? ({hint})")
     return oe[keep], og[near[keep]]
 
 

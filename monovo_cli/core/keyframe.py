@@ -8,7 +8,7 @@ finest level gets, :func:`footprint` how much of an image the model still covers
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -95,3 +95,32 @@ def footprint(camera: PinholeCamera, corners_cur: np.ndarray) -> float:
                    np.float32)
     area, _ = cv2.intersectConvexConvex(poly, img)
     return float(area) / (camera.width * camera.height)
+
+
+def mask_keyframe(key: Keyframe, camera: PinholeCamera, usable: np.ndarray, *,
+                  min_points: int) -> Keyframe:
+    """``key`` without the observation points on unusable pixels: ``usable`` (H, W) bool at
+    full resolution, resized to each level as :func:`build_keyframe` does (a model built
+    before the mask was known, e.g. ``monovo init`` without ``--mask``).
+
+    Raises TrackingError when fewer than ``min_points`` full-resolution points are left.
+    """
+    levels = []
+    m = np.asarray(usable, bool)
+    for lv, kl in enumerate(key.levels):
+        cam = camera.scaled(lv)
+        if lv > 0:
+            m = cv2.resize(m.astype(np.uint8), (cam.width, cam.height),
+                           interpolation=cv2.INTER_NEAREST).astype(bool)
+        p = kl.points
+        x = np.clip(np.rint(p.uv[:, 0]).astype(int), 0, cam.width - 1)
+        y = np.clip(np.rint(p.uv[:, 1]).astype(int), 0, cam.height - 1)
+        keep = m[y, x]
+        pts = replace(p, uv=p.uv[keep], X=p.X[keep], intensity=p.intensity[keep],
+                      grad=p.grad[keep])
+        if lv == 0:
+            require_points(pts, minimum=min_points, threshold=key.threshold)
+        levels.append(KeyLevel.from_points(pts))
+    while len(levels) > 1 and len(levels[-1].points) < 30:
+        levels.pop()
+    return replace(key, levels=tuple(levels))

@@ -84,7 +84,9 @@ class MotionWriter:
 
 
 class CovarianceWriter:
-    """Streams each frame's 6x6 covariance of (tx, ty, tz, rx, ry, rz) (m, rad), row-major.
+    """Streams each frame's 6x6 covariance of (tx, ty, tz, rx, ry, rz), row-major, in m and
+    degrees like every other output: m^2, m deg, deg^2 (so ``sqrt(c33)`` is motion.csv's
+    ``std_rx``). :meth:`write` takes it in m and rad, as the estimator gives it.
 
     Columns ``frame, c00, c01, ..., c55``; empty fields for a lost frame.
     """
@@ -96,7 +98,10 @@ class CovarianceWriter:
         self._stream.flush()
 
     def write(self, frame: int, cov: np.ndarray) -> None:
-        vals = [fmt(v) if math.isfinite(v) else "" for v in np.asarray(cov, float).ravel()]
+        """One row: ``cov`` (6, 6) of (tx, ty, tz, rx, ry, rz) in m and rad."""
+        to_deg = np.r_[1.0, 1.0, 1.0, np.full(3, np.degrees(1.0))]
+        cov = np.asarray(cov, float) * np.outer(to_deg, to_deg)
+        vals = [fmt(v) if math.isfinite(v) else "" for v in cov.ravel()]
         self._stream.write(",".join([str(frame), *vals]) + "\n")
         self._stream.flush()
 

@@ -2,11 +2,11 @@
 
 A sequence is a directory of image files (``IMAGE_EXTENSIONS``, case-insensitive) in
 natural-sort order, plus an optional ``times.txt`` (one timestamp in seconds per line,
-one line per frame). Other files, and hidden files such as macOS ``._frame.png``
-companions, are ignored. Frames are decoded one at a time into float32 grey images on a
-0..255 scale, whatever their depth (8/16 bit, float), colour layout (grey, BGR, BGRA,
-palette) or format. Every problem is an :class:`~monovo_cli.errors.InputError` with one
-line naming the file.
+one line per frame) in it or, for a ``frames/`` directory, beside it. Other files, and
+hidden files such as macOS ``._frame.png`` companions, are ignored. Frames are decoded one
+at a time into float32 grey images on a 0..255 scale, whatever their depth (8/16 bit,
+float), colour layout (grey, BGR, BGRA, palette) or format. Every problem is an
+:class:`~monovo_cli.errors.InputError` with one line naming the file.
 
 A directory without images may hold PDS3/PDS4 products instead (:mod:`monovo_cli.io.pds`:
 ``.IMG`` with attached or detached ``.LBL`` label, PDS4 ``.xml`` labels; 12-bit samples
@@ -17,12 +17,8 @@ whose image ``topic`` is named; frame k of a container is called ``FILE[k]`` in 
 
 from __future__ import annotations
 
-import contextlib
 import math
-import os
 import re
-import sys
-import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -40,6 +36,7 @@ from monovo_cli.io.containers import (
     list_containers,
 )
 from monovo_cli.io.pds import PDS_EXTENSIONS, label_times, list_products
+from monovo_cli.io.quiet import quiet_native_stderr
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".pgm", ".bmp")
 TIMES_FILE = "times.txt"
@@ -124,68 +121,6 @@ def find_init_yaml(seq: Path) -> Path | None:
     return None
 
 
-class _QuietState:
-    """Reference count of the decodes in flight: the first silences, the last restores."""
-
-    lock = threading.Lock()
-    depth = 0
-    saved_fd: int | None = None
-    log_level: int | None = None
-
-
-def _silence() -> None:
-    with _QuietState.lock:
-        _QuietState.depth += 1
-        if _QuietState.depth > 1:
-            return
-        _QuietState.log_level = cv2.utils.logging.getLogLevel()
-        cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
-        try:
-            sys.stderr.flush()
-        except (AttributeError, OSError, ValueError):
-            pass
-        try:
-            saved = os.dup(2)
-        except OSError:  # no usable fd 2: nothing to protect
-            return
-        try:
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            try:
-                os.dup2(devnull, 2)
-            finally:
-                os.close(devnull)
-        except OSError:
-            os.close(saved)
-            return
-        _QuietState.saved_fd = saved
-
-
-def _unsilence() -> None:
-    with _QuietState.lock:
-        _QuietState.depth -= 1
-        if _QuietState.depth > 0:
-            return
-        if _QuietState.saved_fd is not None:
-            os.dup2(_QuietState.saved_fd, 2)
-            os.close(_QuietState.saved_fd)
-            _QuietState.saved_fd = None
-        if _QuietState.log_level is not None:
-            cv2.utils.logging.setLogLevel(_QuietState.log_level)
-            _QuietState.log_level = None
-
-
-@contextlib.contextmanager
-def _quiet_native_stderr() -> Iterator[None]:
-    """Silence OpenCV's log and native codecs (libpng prints straight to fd 2) while decoding,
-    so that a bad frame yields one clean error line on stderr. Concurrent decodes (threads)
-    share one redirection."""
-    _silence()
-    try:
-        yield
-    finally:
-        _unsilence()
-
-
 def _to_gray(img: np.ndarray, path: Path) -> np.ndarray:
     """float32 grey on a 0..255 scale from whatever cv2.IMREAD_UNCHANGED returned."""
     if img.ndim == 3 and img.shape[2] == 1:
@@ -226,7 +161,7 @@ def decode_gray(data: bytes | np.ndarray, path: Path) -> np.ndarray:
     buf = np.frombuffer(data, dtype=np.uint8) if isinstance(data, (bytes, bytearray)) else data
     if buf.size == 0:
         raise InputError(f"{path}: {_CANNOT_DECODE}")
-    with _quiet_native_stderr():
+    with quiet_native_stderr():
         try:
             img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
         except (cv2.error, MemoryError, ValueError, OverflowError):
@@ -314,16 +249,32 @@ class FrameSequence:
             raise InputError(f"{self.dir}: no image files (accepted: "
                              f"{' '.join(IMAGE_EXTENSIONS)}, any case; or PDS products "
                              ".IMG .LBL .xml; or a video or a ROS bag)")
-        times = self.dir / TIMES_FILE
-        self.times_path = times if times.is_file() else None
+        self.times_path = None
         from_labels = None
-        if self.times_path is not None:
-            self.timestamps = _read_times(self.times_path, len(self.paths))
+        times = self._times()
+        if times is not None:
+            self.times_path, self.timestamps = times
         elif self.kind == "pds":
             from_labels = label_times(self.paths, TIMES_FILE)
         if self.times_path is None:
             self.timestamps = (from_labels if from_labels is not None
                                else np.arange(len(self.paths), dtype=float))
+
+    def _times(self) -> tuple[Path, np.ndarray] | None:
+        """``(times.txt, its timestamps)`` of a directory of frames: the one in it or, for a
+        ``frames/`` directory, the one beside it (in the sequence folder); both may exist
+        only if they agree. None without one."""
+        candidates = [self.dir / TIMES_FILE]
+        if self.dir.name == FRAMES_SUBDIR:
+            candidates.append(self.dir.parent / TIMES_FILE)
+        found = [(p, _read_times(p, len(self.paths))) for p in candidates if p.is_file()]
+        if len(found) == 2 and not np.array_equal(found[0][1], found[1][1]):
+            (a, ta), (b, tb) = found
+            k = int(np.argmax(ta != tb))
+            raise InputError(f"{a} and {b} differ (frame {k}: {float(ta[k])!r} s and "
+                             f"{float(tb[k])!r} s); "
+                             "keep one times.txt")
+        return found[0] if found else None
 
     def __len__(self) -> int:
         return len(self.timestamps)

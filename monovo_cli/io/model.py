@@ -1,10 +1,20 @@
 """The ground model file (``model.npz``): a keyframe's observation points and plane.
+
+Besides the points, the file records what they were built from (:func:`read_model_record`):
+the SHA-256 of frame 0's decoded grey image (:func:`image_sha256`), the tracking options
+given to ``monovo init`` and the mask's fingerprint, so that ``monovo track --model`` can
+refuse a model of another sequence or built with other options. The camera, plane and
+region are in the file anyway.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import io
+import json
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -12,11 +22,27 @@ from monovo_cli.errors import InputError
 from monovo_cli.io.atomic import atomic_write_bytes
 
 
-def save_model(path: Path, keyframe, camera, region) -> None:
+def image_sha256(image: np.ndarray) -> str:
+    """SHA-256 (hex) of a decoded image (H, W) as float32 grey levels, its shape included:
+    the same for any file format holding the same pixels."""
+    a = np.ascontiguousarray(image, dtype=np.float32)
+    h = hashlib.sha256(f"{a.shape}".encode())
+    h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def save_model(path: Path, keyframe, camera, region, *, frame0: np.ndarray | None = None,
+               options: Any = None, mask: np.ndarray | None = None) -> None:
     """Save a ground model (a :class:`~monovo_cli.core.keyframe.Keyframe`) of ``camera`` and
-    ``region`` (x0, y0, x1, y1 px) to ``model.npz`` atomically."""
+    ``region`` (x0, y0, x1, y1 px) to ``model.npz`` atomically, with the fingerprint of the
+    ``frame0`` image (H, W) it was built from, the TrackOptions ``options`` and the fingerprint
+    of the ``mask`` (H, W) bool of usable pixels it was built with."""
     path = Path(path)
+    record = {"frame0_sha256": image_sha256(frame0) if frame0 is not None else None,
+              "options": dataclasses.asdict(options) if options is not None else None,
+              "mask_sha256": image_sha256(mask) if mask is not None else None}
     arrays = {
+        "record": np.array(json.dumps(record, sort_keys=True)),
         "format": np.array("monovo-model-1"),
         "camera": np.array([camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy]),
         "distortion": np.asarray(camera.distortion, dtype=float),
@@ -83,3 +109,21 @@ def load_model(path: Path):
     except (KeyError, ValueError, IndexError, TypeError):
         raise InputError(damaged) from None
     return camera, region, key
+
+
+def read_model_record(path: Path) -> dict[str, Any]:
+    """What ``model.npz`` says it was built from: ``frame0_sha256`` (str), ``options`` (the
+    TrackOptions given to init, as a dict), ``mask_sha256`` (str); each None when unknown (a
+    model written before monovo recorded it). Call after :func:`load_model` succeeded."""
+    empty = {"frame0_sha256": None, "options": None, "mask_sha256": None}
+    try:
+        with np.load(Path(path), allow_pickle=False) as z:
+            if "record" not in z:
+                return empty
+            record = json.loads(str(z["record"]))
+    except Exception:  # noqa: BLE001 - same family of failures as in load_model
+        raise InputError(f"{path}: damaged or incomplete model; write it again with "
+                         "'monovo init'") from None
+    if not isinstance(record, dict):
+        raise InputError(f"{path}: damaged or incomplete model; write it again with 'monovo init'")
+    return {k: record.get(k) for k in empty}

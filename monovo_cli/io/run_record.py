@@ -58,8 +58,12 @@ def frames_fingerprint(frames: FrameSequence) -> dict[str, Any]:
     products), and times.txt's fingerprint."""
     h = hashlib.sha256()
     for p in frames.paths:
-        st = p.stat()
-        h.update(f"{p.name}\0{st.st_size}\0{st.st_mtime_ns}\n".encode())
+        try:
+            st = p.stat()
+            size, mtime = st.st_size, st.st_mtime_ns
+        except OSError:  # e.g. a dangling link: tracking reports the frame when it gets there
+            size, mtime = -1, -1
+        h.update(f"{p.name}\0{size}\0{mtime}\n".encode())
     one_file_per_frame = frames.kind in ("images", "pds")
     return {
         "source": str(Path(frames.dir).resolve()),

@@ -32,8 +32,14 @@ from monovo_cli.io.atomic import atomic_write_text
 from monovo_cli.io.config import InitConfig, check_frame_size, load_init
 from monovo_cli.io.formats import CovarianceWriter, MotionRow, MotionWriter, trajectory_csv_text, tum_text
 from monovo_cli.io.frames import FrameSequence, find_init_yaml, resolve_sequence
-from monovo_cli.io.model import load_model, save_model
+from monovo_cli.io.model import save_model
 from monovo_cli.io.run_record import run_record, write_run_record
+from monovo_cli.pipeline.preflight import (
+    check_covariance_path,
+    existing_results,
+    groundtruth_poses,
+    model_keyframe,
+)
 
 log = logging.getLogger(__name__)
 
@@ -87,7 +93,7 @@ def prepare_out_dir(out_dir: Path, overwrite: bool) -> None:
     if out_dir.exists() and not out_dir.is_dir():
         raise OutputError(f"{out_dir}: exists and is not a directory; give -o a directory")
     if out_dir.is_dir():
-        existing = [n for n in RESULT_FILES if (out_dir / n).exists()]
+        existing = existing_results(out_dir, RESULT_FILES)
         if existing and not overwrite:
             raise OutputError(f"{out_dir}: already holds results ({', '.join(existing)}); "
                               "use --overwrite or another -o")
@@ -104,13 +110,20 @@ def prepare_out_dir(out_dir: Path, overwrite: bool) -> None:
 
 
 def init_model(seq: Path, params: Path | None, out: Path, options: TrackOptions, *,
-               topic: str | None = None) -> Keyframe:
-    """``monovo init``: build the frame-0 ground model and save it to ``out`` (model.npz)."""
+               topic: str | None = None, mask: Path | None = None,
+               overwrite: bool = False) -> Keyframe:
+    """``monovo init``: build the frame-0 ground model and save it to ``out`` (model.npz),
+    with the fingerprints of frame 0, the options and the ``mask`` (a PNG, as for track) it
+    was built with. An existing ``out`` is refused unless ``overwrite``."""
+    if Path(out).exists() and not overwrite:
+        raise OutputError(f"{out}: already exists; use --overwrite or another -o")
     frames, cfg = open_sequence(seq, params, topic=topic)
+    usable = _read_mask(Path(mask), cfg) if mask is not None else None
     first = frames.read(0)
     with _naming(first.path):
-        key = build_keyframe(0, first.image, cfg.camera, cfg.plane, cfg.region, np.eye(4), options)
-    save_model(out, key, cfg.camera, cfg.region)
+        key = build_keyframe(0, first.image, cfg.camera, cfg.plane, cfg.region, np.eye(4), options,
+                             mask=usable)
+    save_model(out, key, cfg.camera, cfg.region, frame0=first.image, options=options, mask=usable)
     return key
 
 
@@ -173,27 +186,20 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     ``mask`` a PNG of the frame size whose non-zero pixels are never used (rover body, a
     fixed shadow); ``prior`` a motion CSV (motion.csv's columns) whose motions replace the
     constant-velocity guess; ``covariance`` a CSV written row by row with each frame's full
-    6x6 covariance of (tx, ty, tz, rx, ry, rz) (m, rad). ``topic`` the image topic of a ROS
-    bag.
+    6x6 covariance of (tx, ty, tz, rx, ry, rz) (m, deg). ``topic`` the image topic of a ROS
+    bag. Every side input is checked before anything is written (:mod:`.preflight`).
     ``progress(done, total)`` is called after every frame.
     """
+    check_covariance_path(covariance, out_dir)
     frames, cfg = open_sequence(seq, params, topic=topic)
     usable = _read_mask(Path(mask), cfg) if mask is not None else None
     priors = _read_prior(Path(prior)) if prior is not None else {}
-    gt_poses = None
-    if groundtruth is not None:
-        from monovo_cli.io.formats import read_tum
-
-        gt_poses = read_tum(Path(groundtruth))[1]
+    gt_poses = groundtruth_poses(Path(groundtruth), frames) if groundtruth is not None else None
     if len(frames) < 2:
         raise InputError(f"{frames.dir}: only {len(frames)} frame; tracking needs at least 2")
     first_key = None
     if model is not None:
-        cam, region, first_key = load_model(model)
-        if (cam.width, cam.height) != (cfg.camera.width, cfg.camera.height):
-            raise InputError(f"{model}: model is for {cam.width}x{cam.height} frames, "
-                             f"init.yaml for {cfg.camera.width}x{cfg.camera.height}; build one "
-                             "for these frames with 'monovo init'")
+        first_key = model_keyframe(Path(model), frames, cfg, options, usable)
     if out_dir is not None:
         prepare_out_dir(out_dir, overwrite)
         for name in RESULT_FILES:  # stale results of an earlier run must not survive
