@@ -2,7 +2,8 @@
 
 :mod:`~monovo_cli.cli.group` holds the group (-q/-v, errors to exit statuses, logging,
 signals, the progress bar), :mod:`~monovo_cli.cli.options` the options several commands
-share, each declared once, and each command has its own module. A command imports the
+share, each declared once, :mod:`~monovo_cli.cli.config` ``--config FILE`` (option values
+from YAML, for every command), and each command has its own module. A command imports the
 library (numpy, OpenCV, the pipeline) when it runs, looking its function up then, so that
 ``monovo --help`` starts at once.
 """
