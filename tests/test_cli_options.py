@@ -38,7 +38,7 @@ def calls(monkeypatch):
 
     def fake_track(seq, params, out_dir, options, **kw):
         seen["track"] = (options, kw)
-        return SimpleNamespace()  # with -q the command prints nothing of it
+        return SimpleNamespace(mostly_lost=False)  # with -q the command prints nothing else
 
     def fake_init(seq, params, out, options, **kw):
         seen["init"] = (options, kw)
@@ -142,7 +142,7 @@ def summary_track(monkeypatch):
 
     def fake(*a, **kw):
         return SimpleNamespace(frames=2, seconds=1.0, fps=2.0, mean_msd=0.5, reanchored=0,
-                               lost=0, distance_m=0.1)
+                               reinit=0, lost=0, distance_m=0.1, mostly_lost=False)
 
     monkeypatch.setattr(track, "track_sequence", fake)
 
