@@ -35,6 +35,7 @@ from monovo_cli.io.containers import (
     is_bag,
     list_containers,
 )
+from monovo_cli.io.grey import grey_from_float
 from monovo_cli.io.pds import PDS_EXTENSIONS, label_times, list_products
 from monovo_cli.io.quiet import quiet_native_stderr
 
@@ -133,15 +134,7 @@ def _to_gray(img: np.ndarray, path: Path) -> np.ndarray:
     elif img.dtype == np.uint16:
         f = img.astype(np.float32) * np.float32(255.0 / 65535.0)
     elif img.dtype in (np.float32, np.float64):
-        f = img.astype(np.float32)
-        if not np.all(np.isfinite(f)):
-            raise InputError(f"{path}: float image contains NaN or infinite pixels")
-        lo, hi = float(f.min()), float(f.max())
-        if lo >= 0.0 and hi <= 1.0:
-            f = f * np.float32(255.0)
-        elif not (lo >= 0.0 and hi <= 255.0):
-            raise InputError(f"{path}: float image values span [{lo:g}, {hi:g}]; "
-                             "expected 0..1 or 0..255 (or use 8/16-bit images)")
+        f = grey_from_float(img, path, "float image", "or use 8/16-bit images")
     else:
         raise InputError(f"{path}: unsupported pixel type {img.dtype} "
                          "(use 8- or 16-bit unsigned, or float, images)")

@@ -40,6 +40,7 @@ from typing import Any
 import numpy as np
 
 from monovo_cli.errors import InputError
+from monovo_cli.io.grey import grey_from_float
 
 #: Extensions of PDS products (case-insensitive): PDS3 data with attached or detached label,
 #: PDS3 detached labels, PDS4 labels.
@@ -267,15 +268,7 @@ def to_gray(arr: np.ndarray, bits: int, path: Path) -> np.ndarray:
         scale = 1.0 if bits <= 8 else 2.0 ** (8 - bits)
         f = a.astype(np.float32) * np.float32(scale)
     elif arr.dtype.kind == "f":
-        f = arr.astype(np.float32)
-        if not np.all(np.isfinite(f)):
-            raise InputError(f"{path}: float image contains NaN or infinite samples")
-        lo, hi = float(f.min()), float(f.max())
-        if lo >= 0.0 and hi <= 1.0:
-            f = f * np.float32(255.0)
-        elif not (lo >= 0.0 and hi <= 255.0):
-            raise InputError(f"{path}: float samples span [{lo:g}, {hi:g}]; expected 0..1 or "
-                             "0..255 (use raw counts, an EDR)")
+        f = grey_from_float(arr, path, "float product", "use raw counts, an EDR")
     else:
         raise InputError(f"{path}: unsupported sample type {arr.dtype} (expected integer or "
                          "float samples)")

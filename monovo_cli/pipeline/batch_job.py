@@ -199,11 +199,9 @@ def limit_threads() -> None:
 
 
 def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
+    from monovo_cli.io.run_record import sha256_file  # (yaml: not at a worker's start)
+
+    return sha256_file(path)
 
 
 def _folder(seq: Path) -> Path:
