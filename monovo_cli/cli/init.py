@@ -10,17 +10,13 @@ from monovo_cli.cli.options import (
     mask_option,
     output_option,
     overwrite_option,
-    params_option,
-    seq_argument,
-    topic_option,
+    sequence_inputs,
     track_options,
 )
 
 
 @click.command()
-@seq_argument
-@params_option
-@topic_option
+@sequence_inputs
 @output_option("The model file to write (model.npz).")
 @overwrite_option("Replace the model file if it exists.")
 @mask_option

@@ -73,6 +73,11 @@ params_option = click.option("-p", "--params", type=click.Path(path_type=Path), 
                              help="init.yaml [default: the one beside the frames].")
 
 
+def sequence_inputs(f):
+    """SEQ, -p/--params and --topic: a sequence and its init.yaml (init, track, overlay)."""
+    return seq_argument(params_option(topic_option(f)))
+
+
 def skip_bad_frames_option(otherwise: str):
     """--skip-bad-frames; ``otherwise`` says what happens without it."""
     return click.option("--skip-bad-frames", is_flag=True,

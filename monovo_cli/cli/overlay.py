@@ -13,17 +13,13 @@ from monovo_cli.cli.options import (
     keyword_default,
     output_option,
     overwrite_option,
-    params_option,
     parse_triangle,
-    seq_argument,
-    topic_option,
+    sequence_inputs,
 )
 
 
 @click.command()
-@seq_argument
-@params_option
-@topic_option
+@sequence_inputs
 @click.option("-t", "--trajectory", type=click.Path(path_type=Path), required=True,
               help="The trajectory.csv (or .tum) of SEQ from 'monovo track'; status and msd "
                    "come from motion.csv beside it.")

@@ -11,19 +11,15 @@ from monovo_cli.cli.options import (
     LOOP,
     output_option,
     overwrite_option,
-    params_option,
-    seq_argument,
+    sequence_inputs,
     side_inputs,
     skip_bad_frames_option,
-    topic_option,
     track_options,
 )
 
 
 @click.command()
-@seq_argument
-@params_option
-@topic_option
+@sequence_inputs
 @output_option("Output directory, or '-' to stream motion.csv rows to stdout.", path=False)
 @click.option("--model", type=click.Path(path_type=Path), default=None,
               help="A model.npz from 'monovo init' to start from.")
