@@ -54,7 +54,16 @@ def run_pairs(root: Path, n_pairs: int, noise_var: float, seed: int, options: Tr
     """Errors (n, 6), converged flags (n,), wall and CPU seconds per pair (n,) (n,)."""
     synthesize(root, preset="pairs", frames=n_pairs, noise_var=noise_var, seed=seed,
                clean_frame0=clean_frame0)
-    errs, secs, cpu = [], [], []
+    errs, _, secs, cpu = track_pairs(root, options)
+    ok = (np.abs(errs[:, :3]).max(1) < 0.05) & (np.abs(errs[:, 3:]).max(1) < 0.05)
+    return errs, ok, secs, cpu
+
+
+def track_pairs(root: Path, options: TrackOptions):
+    """Track every ``pair_NNNN`` of a folder written by ``synthesize(preset="pairs")``, frames
+    decoded beforehand: errors (n, 6) (m, deg), frame 1's results (n ``FrameResult``: status,
+    reason), wall and CPU seconds per pair (n,) (n,) (tracking incl. the frame-0 model)."""
+    errs, results, secs, cpu = [], [], [], []
     for pair in sorted(p for p in root.iterdir() if p.name.startswith("pair_")):
         frames = FrameSequence(pair / "frames")
         cfg = load_init(pair / "init.yaml")
@@ -66,9 +75,8 @@ def run_pairs(root: Path, n_pairs: int, noise_var: float, seed: int, options: Tr
         cpu.append(time.process_time() - c0)
         _, gt, _ = read_motion_csv(pair / "groundtruth_motion.csv")
         errs.append(motion_errors(res[1].prev_from_cur, gt[0]))
-    errs = np.array(errs)
-    ok = (np.abs(errs[:, :3]).max(1) < 0.05) & (np.abs(errs[:, 3:]).max(1) < 0.05)
-    return errs, ok, np.array(secs), np.array(cpu)
+        results.append(res[1])
+    return np.array(errs), results, np.array(secs), np.array(cpu)
 
 
 def table(errs: np.ndarray, ok: np.ndarray) -> str:

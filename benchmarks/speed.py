@@ -203,6 +203,33 @@ def memory(tmp: Path, counts: list[int], seed: int) -> list[tuple[int, float, fl
     return rows
 
 
+def measure(seq: Path, out: Path) -> tuple[dict, tuple[float, float], tuple[float, float]]:
+    """One drive's speed figures: :func:`end_to_end` (into ``out``), :func:`estimator_only`
+    frames/s (wall, CPU) and the ECC peer's frames/s (wall, CPU) on the same PNGs."""
+    e2e = end_to_end(seq, out)
+    est_fps = estimator_only(seq)
+    ecc = peer_on_drive(EccPeer(), seq)
+    return e2e, est_fps, (ecc.count / ecc.seconds, ecc.count / ecc.cpu)
+
+
+SPEED_HEAD = ("| size | end to end, whole call | end to end, per frame (wall) | estimator only | "
+              "ms/frame end to end | target end to end | ECC peer, end to end | monovo / ECC | "
+              "lost | re-anchored | final error (% of distance) |")
+
+
+def speed_row(size: str, e: dict, est_fps: tuple[float, float], ecc_fps: tuple[float, float],
+              target: float | None = None) -> str:
+    """One row of ``SPEED_HEAD`` from :func:`measure`'s figures (``target``: frames/s end to
+    end; default ``TARGET_FPS`` of the size)."""
+    (est, est_cpu), (ecc, ecc_cpu) = est_fps, ecc_fps
+    target = TARGET_FPS.get(size) if target is None else target
+    return (f"| {size} | {e['fps']:.1f} ({e['fps_cpu']:.1f}) | {e['fps_steady']:.1f} | "
+            f"{est:.1f} ({est_cpu:.1f}) | {1000 / e['fps']:.1f} ({1000 / e['fps_cpu']:.1f}) | "
+            f"{'–' if target is None else f'≥ {target:g}'} | {ecc:.1f} ({ecc_cpu:.1f}) | "
+            f"{e['fps'] / ecc:.2f} ({e['fps_cpu'] / ecc_cpu:.2f}) | {e['lost']} | "
+            f"{e['reanchored']} | {e['drift_pct']:.3f} |")
+
+
 # --------------------------------------------------------------------------- main
 
 
@@ -226,10 +253,8 @@ def main() -> None:
             seq = tmp / f"drive_{size}"
             synthesize(seq, preset="drive", frames=args.frames, size=(w, h), noise_var=10.0,
                        seed=args.seed)
-            e2e = end_to_end(seq, tmp / f"out_{size}")
-            est_fps = estimator_only(seq)
-            ecc = peer_on_drive(EccPeer(), seq)
-            speed_rows.append((size, e2e, est_fps, (ecc.count / ecc.seconds, ecc.count / ecc.cpu)))
+            e2e, est_fps, ecc_fps = measure(seq, tmp / f"out_{size}")
+            speed_rows.append((size, e2e, est_fps, ecc_fps))
             if not args.no_profile:
                 shares, top = profile_stages(seq, tmp / f"out_{size}")
                 stage_cols.append((size, shares, top, 1000.0 / e2e["fps"]))
@@ -245,17 +270,10 @@ def main() -> None:
 def print_speed(args, speed_rows, stage_cols) -> None:
     print(f"### Frames/s on one core ({args.frames}-frame drives, noise variance 10, seed "
           f"{args.seed}); wall clock, CPU time of this process in brackets\n")
-    print("| size | end to end, whole call | end to end, per frame (wall) | estimator only | "
-          "ms/frame end to end | target end to end | ECC peer, end to end | monovo / ECC | lost | "
-          "re-anchored | final error (% of distance) |")
+    print(SPEED_HEAD)
     print("|" + " --- |" * 11)
-    for size, e, (est, est_cpu), (ecc, ecc_cpu) in speed_rows:
-        target = f"≥ {TARGET_FPS[size]:g}" if size in TARGET_FPS else "–"
-        print(f"| {size} | {e['fps']:.1f} ({e['fps_cpu']:.1f}) | {e['fps_steady']:.1f} | "
-              f"{est:.1f} ({est_cpu:.1f}) | {1000 / e['fps']:.1f} ({1000 / e['fps_cpu']:.1f}) | "
-              f"{target} | {ecc:.1f} ({ecc_cpu:.1f}) | {e['fps'] / ecc:.2f} "
-              f"({e['fps_cpu'] / ecc_cpu:.2f}) | {e['lost']} | {e['reanchored']} | "
-              f"{e['drift_pct']:.3f} |")
+    for row in speed_rows:
+        print(speed_row(*row))
     print(f"\n({load()} at the end.)")
     if stage_cols:
         print("\n### Time per frame by stage (cProfile of the end-to-end run; % of the profiled "
