@@ -1,14 +1,18 @@
 """Real data (issue 13): the feature hypothesis and `monovo track` on real cameras.
 
-    python -m benchmarks.real                       # every section (~3 min)
+    python -m benchmarks.real                       # the real-data sections (~3 min)
     python -m benchmarks.real --sections features   # one or more of: features cost track
+                                                    # choices mer pairs speed
+    python -m benchmarks.real --sections mer pairs  # issue 13's synthetic acceptance (~13 min)
 
 Reads the sequences of ``../shared/real`` (relative to the repo; ``--real DIR`` elsewhere),
 whose README describes them: ``desk_b`` (hand-held, looking down at a desk, 752x480 with a
 strong barrel lens) and ``kitti_ramp`` (KITTI, ~1 m per frame on a highway ramp). When the
 folder is absent the script says so and skips those sections; tests never read it.
 
-Sections (each prints one markdown table; a later one can be added to ``SECTIONS``):
+Sections (each prints one markdown table; a later one can be added to ``SECTIONS``; ``mer``,
+``pairs`` and ``speed``, issue 13's synthetic acceptance runs, are described in
+:mod:`benchmarks.real_synth` and need no real data):
 
 * ``features`` -- the feature hypothesis (:mod:`monovo_cli.core.features`) on every
   consecutive frame pair, given the ground-truth plane in the earlier frame (init.yaml's
@@ -42,6 +46,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from benchmarks import real_synth
 from benchmarks.common import Stopwatch, final_drift, load, machine, one_core
 from monovo_cli.core.features import (
     CHEAP,
@@ -411,7 +416,7 @@ def loss_reasons(seq: RealSequence, frames: int = REASON_FRAMES) -> list[str]:
 
 
 SECTIONS = {"features": section_features, "cost": section_cost, "track": section_track,
-            "choices": section_choices}
+            "choices": section_choices, **real_synth.SECTIONS}
 
 
 def main() -> None:
@@ -419,10 +424,13 @@ def main() -> None:
     ap.add_argument("--real", type=Path, default=REAL, help="folder of the real sequences")
     ap.add_argument("--sections", nargs="+", choices=list(SECTIONS),
                     default=["features", "cost", "track"], help="[default: features cost track]")
+    real_synth.add_arguments(ap)
     args = ap.parse_args()
     one_core()
     print(f"Machine: {machine()}; {load()} at the start\n")
-    seqs = real_sequences(args.real)
+    seqs = None
+    if set(args.sections) - set(real_synth.SECTIONS):
+        seqs = real_sequences(args.real)
     for name in args.sections:
         SECTIONS[name](seqs, args)
     print(f"({load()} at the end.)")
