@@ -30,7 +30,7 @@ def machine() -> str:
     try:
         commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True,
                                 text=True, cwd=Path(__file__).parent).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--", "monovo_cli"],
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", ":/monovo_cli"],
                                capture_output=True, text=True, cwd=Path(__file__).parent).stdout
         if dirty.strip():
             commit += " (+ uncommitted changes in monovo_cli/)"

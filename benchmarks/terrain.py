@@ -65,11 +65,13 @@ def std_honesty(errors: np.ndarray, std: np.ndarray) -> np.ndarray:
     return np.std(e[ok] / std[ok], axis=0)
 
 
-def run_case(root: Path, kind: str, frames: int, seed: int) -> dict:
-    """Render one terrain drive, track it with monovo and ECC; the figures of one table row."""
-    seq = root / kind
-    synthesize(seq, preset="drive", terrain=kind, frames=frames, size=SIZE, noise_var=NOISE_VAR,
-               seed=seed)
+def run_case(root: Path, kind: str, frames: int, seed: int, renders: Path | None = None) -> dict:
+    """Render one terrain drive (or reuse it from ``renders``), track it with monovo and ECC;
+    the figures of one table row."""
+    seq = (renders or root) / f"{kind}_{frames}_{seed}"
+    if not (seq / "groundtruth.tum").exists():
+        synthesize(seq, preset="drive", terrain=kind, frames=frames, size=SIZE,
+                   noise_var=NOISE_VAR, seed=seed)
     out = root / f"{kind}_out"
     mono = monovo_on_drive(seq, out, TrackOptions())
     ecc = peer_on_drive(EccPeer(), seq)
@@ -118,6 +120,9 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=300, help="frames per drive")
     ap.add_argument("--cases", nargs="+", default=list(TERRAINS), choices=TERRAINS)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--renders", type=Path, default=None,
+                    help="keep the rendered drives in this folder and reuse them on the next run "
+                         "[default: a temporary folder]")
     args = ap.parse_args()
     one_core()
     print(f"Machine: {machine()}; {load()} at the start\n")
@@ -127,7 +132,7 @@ def main() -> None:
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         for kind in args.cases:
-            results.append(run_case(Path(tmp), kind, args.frames, args.seed))
+            results.append(run_case(Path(tmp), kind, args.frames, args.seed, args.renders))
             print(f"({kind} done, {load()})", flush=True)
     print()
     print(table(results))
