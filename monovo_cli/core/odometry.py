@@ -6,8 +6,9 @@ Owns the state; does no I/O and no printing. Frames come in one at a time and a
 Each frame is estimated against the current keyframe (the paper's ground model, moved with
 the accumulated motion), so drift grows per keyframe, not per frame. A new keyframe is
 anchored on the current frame when too few of the keyframe's points stay in view or the
-model covers too little of the image; at that moment the plane is re-estimated from the two
-images with the mounting pose as a prior (:mod:`monovo_cli.core.plane_fit`). A frame whose
+model covers too little of the image; its plane is then the MAP of the plane carried by the
+motions, the normal measured from the two images and init.yaml's mounting prior
+(:mod:`monovo_cli.core.plane_tracker`). A frame whose
 estimate fails the divergence checks is marked ``lost``, carries the constant-velocity
 prediction, and the model is re-anchored on the next good frame (:class:`OdometryState`).
 
@@ -32,7 +33,7 @@ from monovo_cli.core.estimate import (
 from monovo_cli.core.features import CHEAP, feature_motion
 from monovo_cli.core.keyframe import Keyframe, build_keyframe, footprint
 from monovo_cli.core.options import TrackOptions
-from monovo_cli.core.plane_fit import PlanePrior, refine_plane_and_motion
+from monovo_cli.core.plane_tracker import PlaneTracker
 from monovo_cli.core.robust import inlier_fraction
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import TrackingError
@@ -105,14 +106,15 @@ class Odometry:
 
     def __init__(self, camera: PinholeCamera, plane: Plane, region: tuple[int, int, int, int],
                  options: TrackOptions | None = None, *, mask: np.ndarray | None = None,
-                 first_keyframe: Keyframe | None = None) -> None:
+                 first_keyframe: Keyframe | None = None, sigma_distance: float | None = None,
+                 sigma_deg: float | None = None) -> None:
+        """``sigma_distance`` (m), ``sigma_deg``: the mounting prior's width (init.yaml)."""
         self.camera = camera
         self.region = region
         self.options = options or TrackOptions()
         self.mask = mask
         self._plane0 = plane
-        self._prior = PlanePrior(plane, np.radians(self.options.plane_prior_deg),
-                                 self.options.distance_pull)
+        self._plane = PlaneTracker(plane, sigma_distance, sigma_deg)
         self._key: Keyframe | None = first_keyframe
         self._world_from_prev = np.eye(4)
         self._cur_from_key_prev = np.eye(4)
@@ -214,21 +216,21 @@ class Odometry:
     # -- outcomes ---------------------------------------------------------------------
     def _accept(self, index: int, timestamp: float, image: np.ndarray, pyr: list[np.ndarray],
                 est: Estimate) -> FrameResult:
+        if self._plane.unsettled and self._key.index != index:
+            est = self._settle_plane(pyr, est)
         key = self._key
         cur_from_key = orthonormalize(est.cur_from_key)
         gain, bias = est.gain, est.bias
         status = FrameStatus.OK
         recovering = self._state is OdometryState.RECOVERING
         reanchor = recovering or self._needs_reanchor(est, key, cur_from_key)
-        plane_cur = key.plane.in_frame(cur_from_key)
+        plane_cur, plane_cov = key.plane.in_frame(cur_from_key), None
         if reanchor and key.index != index:
-            # The joint refinement gives the next keyframe its plane (in this camera); the
-            # pose keeps the fixed-plane estimate, whose error is smaller (the free normal
-            # adds variance to the joint solution's motion).
-            joint_from_key, plane_key, gain, bias = refine_plane_and_motion(
-                key.levels[0].points, pyr[0], cur_from_key, key.plane, self._prior,
-                gain=gain, bias=bias, options=self.options.estimator, iterations=4)
-            plane_cur = plane_key.in_frame(orthonormalize(joint_from_key))
+            # The next keyframe's plane (in this camera); the pose keeps the fixed-plane
+            # estimate, whose error is smaller (the free normal adds variance to the joint
+            # solution's motion).
+            plane_cur, plane_cov, gain, bias = self._plane.successor(
+                key, pyr[0], est, cur_from_key, gain, bias, self.options.estimator)
         world_from_cur = orthonormalize(key.world_from_key @ se3_inv(cur_from_key))
         prev_from_cur = orthonormalize(se3_inv(self._world_from_prev) @ world_from_cur)
         cov = self._relative_covariance(est.covariance, prev_from_cur)
@@ -242,7 +244,7 @@ class Odometry:
         self._lost_run = 0
         if self._key_msd is None:
             self._key_msd = est.msd
-        if reanchor and self._reanchor(index, image, pyr, world_from_cur, plane_cur):
+        if reanchor and self._reanchor(index, image, pyr, world_from_cur, plane_cur, plane_cov):
             status = FrameStatus.REANCHORED
         elif not recovering:  # (a recovering tracker whose new keyframe failed stays so)
             self._state = OdometryState.TRACKING
@@ -347,17 +349,26 @@ class Odometry:
         cov = output_covariance(A @ (cov_cur + self._cov_prev) @ A.T, prev_from_cur)
         return 0.5 * (cov + cov.T)
 
+    def _settle_plane(self, pyr: list[np.ndarray], est: Estimate) -> Estimate:
+        """Test a keyframe plane known only from the prior on this frame (PlaneTracker.test);
+        a corrected one replaces the keyframe if the frame's new estimate passes the checks."""
+        found = self._plane.test(self._key, self._key_image, pyr, est, self.camera,
+                                 self.region, self.options, self.mask)
+        if found is None or self._failure(found[1], found[0]):
+            return est
+        self._key, est, self._plane.covariance = found
+        return est
+
     def _reanchor(self, index: int, image: np.ndarray, pyr: list[np.ndarray],
-                  world_from_cur: np.ndarray, plane: Plane) -> bool:
-        """Anchor a new ground model on this frame (``plane`` in its camera); False if the
-        frame cannot carry one."""
-        d = plane.distance + self._prior.distance_pull * (self._prior.plane.distance - plane.distance)
+                  world_from_cur: np.ndarray, plane: Plane, cov: np.ndarray | None = None) -> bool:
+        """Anchor a new ground model on this frame (``plane`` in its camera, ``cov`` its
+        covariance, None: the prior's); False if the frame cannot carry one."""
         try:
-            self._key = build_keyframe(index, image, self.camera, Plane(plane.normal, d),
-                                       self.region, world_from_cur, self.options, mask=self.mask,
-                                       pyramid=pyr)
+            self._key = build_keyframe(index, image, self.camera, plane, self.region,
+                                       world_from_cur, self.options, mask=self.mask, pyramid=pyr)
         except TrackingError:
             return False
+        self._plane.anchored(cov)
         self._cur_from_key_prev = np.eye(4)
         self._cov_prev = np.zeros((6, 6))
         self._gain, self._bias = 1.0, 0.0
@@ -394,16 +405,18 @@ class Odometry:
 def track(frames: Iterable[tuple[int, float, np.ndarray | None]], camera: PinholeCamera,
           plane: Plane, region: tuple[int, int, int, int], options: TrackOptions | None = None,
           *, mask: np.ndarray | None = None, first_keyframe: Keyframe | None = None,
-          priors: Mapping[int, np.ndarray] | None = None) -> Iterator[FrameResult]:
+          priors: Mapping[int, np.ndarray] | None = None, sigma_distance: float | None = None,
+          sigma_deg: float | None = None) -> Iterator[FrameResult]:
     """Yield a :class:`FrameResult` per ``(index, timestamp, image)``, frame 0 first: the one
     driver of :class:`Odometry` (``monovo track`` runs it too).
 
     ``image`` (H, W) float32, or None for a frame that could not be read (recorded lost at
     the prediction); frame 0 must have one (it carries the ground model unless
     ``first_keyframe`` is given). ``priors`` maps a frame index to its prior motion
-    T_{k-1}_k (4x4).
+    T_{k-1}_k (4x4); ``sigma_distance``/``sigma_deg`` the mounting prior's width.
     """
-    odo = Odometry(camera, plane, region, options, mask=mask, first_keyframe=first_keyframe)
+    odo = Odometry(camera, plane, region, options, mask=mask, first_keyframe=first_keyframe,
+                   sigma_distance=sigma_distance, sigma_deg=sigma_deg)
     it = iter(frames)
     try:
         index, ts, image = next(it)

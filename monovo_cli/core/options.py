@@ -64,8 +64,6 @@ class TrackOptions:
     max_condition: float = 1e7
     max_step_m: float | None = None
     max_step_deg: float | None = None
-    plane_prior_deg: float = 2.0
-    distance_pull: float = 0.1
     estimator: EstimatorOptions = field(default_factory=EstimatorOptions)
 
 

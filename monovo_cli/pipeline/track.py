@@ -231,7 +231,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
         writer = MotionWriter(stream, with_std=True, with_reason=True)
         cov_writer = CovarianceWriter(_open_output(Path(covariance))) if covariance else None
         tracked = track(_read_frames(frames, skip_bad_frames, out_dir), cfg.camera, cfg.plane,
-                        cfg.region, options, mask=usable, first_keyframe=first_key, priors=priors)
+                        cfg.region, options, mask=usable, first_keyframe=first_key, priors=priors,
+                        sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg)
         with _naming(frames.paths[0]):  # frame 0 builds the ground model
             first = next(tracked)
         prev = None

@@ -1,0 +1,236 @@
+"""The keyframe plane as a Gaussian belief: carried through the motions, fused at re-anchors.
+
+A plane ``{X : n . X = d}`` near a reference plane ``(n_r, d_r)`` has the chart coordinates
+``x = (d - d_r, theta_1, theta_2)`` (m, rad) with ``theta = E_r^T n / (n_r . n)``, where the
+columns of ``E_r`` (3, 2) span the plane orthogonal to ``n_r`` (:func:`tangent_basis`): the
+distance and two tilt angles (the gnomonic chart of the unit sphere, so the inverse is
+``n = normalize(n_r + E_r theta)``). A :class:`PlaneBelief` is a Gaussian in these
+coordinates in information form (``information`` Lambda, ``vector`` eta = Lambda x_mean), so
+that a measurement that says nothing about the distance (the images, see below) has a
+zero row and column instead of an infinite variance.
+
+At a new keyframe the plane is the maximum a posteriori combination (:func:`fuse`, the sum
+of the informations, iterated on the sphere) of
+
+(a) the previous keyframe's plane carried through the estimated motion, its covariance
+    propagated with the motion's (:func:`propagate`): a distance error scales the
+    translation with it (the images fix t / d), so it is carried as ``d_cur / d_key`` times
+    itself; the motion's error adds ``-n . v`` to the distance and ``n x w`` to the normal;
+(b) the plane measured from the images at that keyframe: the normal from the joint
+    refinement of motion and normal (:mod:`monovo_cli.core.plane_fit`), with the information
+    of its normal equations; no information on the distance (with d and the translation
+    scaled together the images do not change);
+(c) the mounting prior (:func:`mounting_prior`): the rover stands on the ground, so in every
+    camera frame the ground is the plane of init.yaml within ``ground.sigma_distance`` (m)
+    and ``ground.sigma_deg`` (suspension, terrain). Each keyframe's prior counts as an
+    independent measurement of that keyframe's ground, so the scale converges to the mean
+    of the departures rather than to frame 0's: frame 0 is one sample, not the truth.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from monovo_cli.geometry.lie import skew
+from monovo_cli.geometry.plane import Plane
+
+SIGMA_DISTANCE_FRACTION = 1.0 / 30.0  # default ground.sigma_distance: this x the distance
+SIGMA_DEG = 3.0  # default ground.sigma_deg
+
+
+def tangent_basis(n: np.ndarray) -> np.ndarray:
+    """(3, 2): two orthonormal vectors orthogonal to the unit vector ``n`` (a fixed choice)."""
+    a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    e1 = np.cross(n, a)
+    e1 /= np.linalg.norm(e1)
+    return np.column_stack([e1, np.cross(n, e1)])
+
+
+def to_chart(ref: Plane, plane: Plane) -> np.ndarray:
+    """Coordinates (3,) of ``plane`` in the chart at ``ref``: (d - d_r, theta_1, theta_2)."""
+    n = plane.normal
+    return np.r_[plane.distance - ref.distance, tangent_basis(ref.normal).T @ n / (ref.normal @ n)]
+
+
+def from_chart(ref: Plane, x: np.ndarray) -> Plane:
+    """The plane at chart coordinates ``x`` (3,) of ``ref`` (inverse of :func:`to_chart`)."""
+    n = ref.normal + tangent_basis(ref.normal) @ x[1:]
+    return Plane(n / np.linalg.norm(n), ref.distance + float(x[0]))
+
+
+def chart_jacobian(ref: Plane, at: Plane) -> np.ndarray:
+    """(3, 3): d to_chart(ref, .) / d x at the origin of the chart of ``at``."""
+    nr, n = ref.normal, at.normal
+    Er, Ea = tangent_basis(nr), tangent_basis(n)
+    c = float(nr @ n)
+    J = np.zeros((3, 3))
+    J[0, 0] = 1.0
+    J[1:, 1:] = (Er.T / c - np.outer(Er.T @ n, nr) / c ** 2) @ Ea
+    return J
+
+
+@dataclass(frozen=True)
+class PlaneBelief:
+    """A Gaussian belief about a plane in the chart at ``plane`` (module docstring).
+
+    ``information`` (3, 3) of (d, theta_1, theta_2) (1/m^2, 1/rad^2, ...), symmetric positive
+    semi-definite; ``vector`` (3,) the information vector eta: the mean is at chart
+    coordinates ``x`` with ``information @ x = vector`` (zeros: the mean is ``plane``).
+    """
+
+    plane: Plane
+    information: np.ndarray
+    vector: np.ndarray | None = None
+
+    @property
+    def eta(self) -> np.ndarray:
+        return np.zeros(3) if self.vector is None else np.asarray(self.vector, dtype=float)
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """(3, 3) inverse of the information (raises LinAlgError if it is singular)."""
+        return np.linalg.inv(self.information)
+
+    @classmethod
+    def from_covariance(cls, plane: Plane, covariance: np.ndarray) -> PlaneBelief:
+        return cls(plane, np.linalg.inv(covariance))
+
+    def in_chart(self, ref: Plane) -> tuple[np.ndarray, np.ndarray]:
+        """``(information, vector)`` of this belief in the chart at ``ref`` (linearised)."""
+        K = np.linalg.inv(chart_jacobian(ref, self.plane))
+        L = K.T @ self.information @ K
+        return 0.5 * (L + L.T), L @ to_chart(ref, self.plane) + K.T @ self.eta
+
+
+def mounting_prior(plane: Plane, sigma_distance: float, sigma_deg: float) -> PlaneBelief:
+    """The mounting prior: ``plane`` (init.yaml's, valid in every camera frame) with std
+    ``sigma_distance`` (m) on the distance and ``sigma_deg`` on each tilt angle; an infinite
+    sigma gives no information on its part."""
+    s_t = math.radians(sigma_deg)
+    info = np.diag([1.0 / sigma_distance ** 2, 1.0 / s_t ** 2, 1.0 / s_t ** 2])
+    return PlaneBelief(plane, info)
+
+
+def default_sigmas(plane: Plane, sigma_distance: float | None,
+                   sigma_deg: float | None) -> tuple[float, float]:
+    """``(sigma_distance, sigma_deg)`` with the documented defaults for those not given:
+    ``SIGMA_DISTANCE_FRACTION`` of the plane's distance (5 cm at 1.5 m) and ``SIGMA_DEG``."""
+    return (plane.distance * SIGMA_DISTANCE_FRACTION if sigma_distance is None else sigma_distance,
+            SIGMA_DEG if sigma_deg is None else sigma_deg)
+
+
+def fuse(beliefs: Sequence[PlaneBelief], iterations: int = 3) -> PlaneBelief:
+    """The maximum a posteriori plane of independent ``beliefs`` (at least one with full
+    information in sum), with its information in its own chart.
+
+    Linearised in the chart at the current estimate (first: the first belief's plane), the
+    sum of the informations and information vectors gives the next estimate; a few
+    iterations settle the sphere's curvature. Raises ValueError if the sum is singular.
+    """
+    ref = beliefs[0].plane
+    for _ in range(iterations):
+        L = np.zeros((3, 3))
+        eta = np.zeros(3)
+        for b in beliefs:
+            Lb, eb = b.in_chart(ref)
+            L += Lb
+            eta += eb
+        try:
+            x = np.linalg.solve(L, eta)
+        except np.linalg.LinAlgError:
+            raise ValueError("the plane beliefs do not determine the plane") from None
+        ref = from_chart(ref, x)
+        if np.max(np.abs(x)) < 1e-12:
+            break
+    L = sum(b.in_chart(ref)[0] for b in beliefs)
+    return PlaneBelief(ref, L)
+
+
+def propagate(plane: Plane, covariance: np.ndarray, cur_from_key: np.ndarray,
+              motion_covariance: np.ndarray) -> PlaneBelief:
+    """Belief (a): ``plane`` (in the keyframe camera, ``covariance`` (3, 3) in its chart)
+    in the current camera, given ``cur_from_key`` (4x4) whose twist xi (v, w) has
+    ``motion_covariance`` (6, 6) with ``key_from_cur_true = exp(xi^) key_from_cur``.
+
+    First order: ``n_c = R n``, ``d_c = d + n_c . t``; a distance error scales t with it (the
+    images fix t / d), a tilt moves with R, and the motion's error moves the plane by
+    ``exp(-xi)`` in the keyframe (``d -= n . v``, ``n += n x w``). Plane and motion errors are
+    taken as independent.
+    """
+    R, t = cur_from_key[:3, :3], cur_from_key[:3, 3]
+    cur = plane.in_frame(cur_from_key)
+    n = plane.normal
+    Ek, Ec = tangent_basis(n), tangent_basis(cur.normal)
+    REk = R @ Ek
+    RN = R @ skew(n)
+    J = np.zeros((3, 9))
+    J[0, 0] = cur.distance / plane.distance
+    J[0, 1:3] = t @ REk
+    J[0, 3:6] = -n
+    J[0, 6:9] = t @ RN
+    J[1:, 1:3] = Ec.T @ REk
+    J[1:, 6:9] = Ec.T @ RN
+    C = np.zeros((9, 9))
+    C[:3, :3] = covariance
+    C[3:, 3:] = motion_covariance
+    P = J @ C @ J.T
+    return PlaneBelief(cur, np.linalg.inv(0.5 * (P + P.T)))
+
+
+def keyframe_plane(key_plane: Plane, key_covariance: np.ndarray, cur_from_key: np.ndarray,
+                   motion_covariance: np.ndarray, *, measured: PlaneBelief | None = None,
+                   prior: PlaneBelief | None = None) -> PlaneBelief:
+    """The plane of a new keyframe (in its camera): the MAP of (a) the keyframe's plane carried
+    by ``cur_from_key``, (b) ``measured`` and (c) ``prior`` (module docstring)."""
+    if not np.all(np.isfinite(motion_covariance)):
+        motion_covariance = np.zeros((6, 6))
+    beliefs = [propagate(key_plane, key_covariance, cur_from_key, motion_covariance)]
+    beliefs += [b for b in (measured, prior) if b is not None]
+    return fuse(beliefs)
+
+
+def transported(belief: PlaneBelief, b_from_a: np.ndarray) -> PlaneBelief:
+    """A belief about a plane in frame a, as one about the same plane in frame b (exact pose
+    ``b_from_a``, 4x4): the tilt coordinates turn with the rotation; a distance with no
+    information stays without."""
+    moved = belief.plane.in_frame(b_from_a)
+    M = np.eye(3)
+    M[1:, 1:] = tangent_basis(moved.normal).T @ b_from_a[:3, :3] @ tangent_basis(belief.plane.normal)
+    M[0, 1:] = b_from_a[:3, 3] @ b_from_a[:3, :3] @ tangent_basis(belief.plane.normal)
+    K = np.linalg.inv(M)
+    L = K.T @ belief.information @ K
+    return PlaneBelief(moved, 0.5 * (L + L.T), K.T @ belief.eta)
+
+
+PLANE_SETTLED_DEG = 1.0  # a keyframe plane whose tilt std exceeds this is measured on every frame
+
+
+def tilt_std_deg(covariance: np.ndarray) -> float:
+    """The largest std (deg) of the tilt angles in a plane covariance (3, 3)."""
+    return float(np.degrees(np.sqrt(max(np.linalg.eigvalsh(covariance[1:, 1:])[-1], 0.0))))
+CONSISTENT_CHI2 = 13.8  # chi-square of 2 tilts at 99.9 %: below it the images confirm a plane
+
+
+def tilt_chi2(measured: PlaneBelief, plane: Plane) -> float:
+    """Chi-square (2 dof) of the tilt that ``measured`` gives against ``plane``'s: how far the
+    measurement's mean lies from ``plane`` in units of its own information."""
+    L, eta = measured.in_chart(plane)
+    x = np.linalg.pinv(L[1:, 1:]) @ eta[1:]
+    return float(x @ L[1:, 1:] @ x)
+CONFIRMED_DEG = 0.5  # a consistent measurement this precise confirms a plane as exact
+EXACT_STD = 1e-6  # relative std of the distance and std (rad) of the tilts of a confirmed plane
+
+
+def measured_tilt_std_deg(measured: PlaneBelief) -> float:
+    """The largest std (deg) of the tilts a measurement gives (inf where it says nothing)."""
+    lam = np.linalg.eigvalsh(measured.information[1:, 1:])[0]
+    return float(np.degrees(1.0 / np.sqrt(lam))) if lam > 0 else float("inf")
+
+
+def exact_covariance(plane: Plane) -> np.ndarray:
+    """(3, 3) covariance of a plane taken as exact (tiny, so that beliefs stay invertible)."""
+    return np.diag([(EXACT_STD * plane.distance) ** 2, EXACT_STD ** 2, EXACT_STD ** 2])
