@@ -305,6 +305,7 @@ def section_pairs(seqs, args) -> None:
     rows, bounds, accept = [], [], []
     with renders_root(args) as root:
         rock = rock_png(root)
+        t0 = time.perf_counter()
         for label, texture in (("procedural", None), ("gravel", "gravel"), ("rock (image file)", rock)):
             tag = label.split()[0]
             if texture == rock:
@@ -332,7 +333,7 @@ def section_pairs(seqs, args) -> None:
                            " / ".join(f"{x:.2e}" for x in b_rms[3:]),
                            f"{100 * seen.mean():.1f} %",
                            str(sum(r.status == "lost" for r in results))])
-            print(f"({label} done, {load()})", flush=True)
+            print(f"({label} done, {time.perf_counter() - t0:.0f} s so far, {load()})", flush=True)
     print(f"\nConverged: monovo does not call frame 1 lost and the error is below "
           f"{CONVERGED_M:g} m / {CONVERGED_DEG:g}° on every axis (a peer: it gives an "
           "estimate within those bounds). Errors and ratios over each method's converged "
