@@ -3,7 +3,7 @@
     python -m benchmarks.real                       # the real-data sections (~3 min)
     python -m benchmarks.real --sections features   # one or more of: features cost track
                                                     # choices mer pairs speed
-    python -m benchmarks.real --sections mer pairs  # issue 13's synthetic acceptance (~13 min)
+    python -m benchmarks.real --sections mer pairs  # issue 13's synthetic acceptance (~15 min)
 
 Reads the sequences of ``../shared/real`` (relative to the repo; ``--real DIR`` elsewhere),
 whose README describes them: ``desk_b`` (hand-held, looking down at a desk, 752x480 with a
