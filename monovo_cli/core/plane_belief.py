@@ -15,7 +15,11 @@ of the informations, iterated on the sphere) of
 (a) the previous keyframe's plane carried through the estimated motion, its covariance
     propagated with the motion's (:func:`propagate`): a distance error scales the
     translation with it (the images fix t / d), so it is carried as ``d_cur / d_key`` times
-    itself; the motion's error adds ``-n . v`` to the distance and ``n x w`` to the normal;
+    itself; the motion's error adds ``-n . v`` to the distance and ``n x w`` to the normal.
+    Then a process noise of DISTANCE_CHANGE times the distance: on ground that is not a
+    plane the carried distance errs by more than the motion's covariance knows (its model
+    error, ~1 % per keyframe on the benchmark's terrain), and the new keyframe's patch of
+    ground is not the old one;
 (b) the plane measured from the images at that keyframe: the normal from the joint
     refinement of motion and normal (:mod:`monovo_cli.core.plane_fit`), with the information
     of its normal equations; no information on the distance (with d and the translation
@@ -40,6 +44,7 @@ from monovo_cli.geometry.plane import Plane
 
 SIGMA_DISTANCE_FRACTION = 1.0 / 30.0  # default ground.sigma_distance: this x the distance
 SIGMA_DEG = 3.0  # default ground.sigma_deg
+DISTANCE_CHANGE = 0.02  # process noise of the carried distance per keyframe: this x the distance
 
 
 def tangent_basis(n: np.ndarray) -> np.ndarray:
@@ -183,14 +188,19 @@ def propagate(plane: Plane, covariance: np.ndarray, cur_from_key: np.ndarray,
 
 def keyframe_plane(key_plane: Plane, key_covariance: np.ndarray, cur_from_key: np.ndarray,
                    motion_covariance: np.ndarray, *, measured: PlaneBelief | None = None,
-                   prior: PlaneBelief | None = None) -> PlaneBelief:
+                   prior: PlaneBelief | None = None,
+                   distance_change: float = 0.0) -> PlaneBelief:
     """The plane of a new keyframe (in its camera): the MAP of (a) the keyframe's plane carried
-    by ``cur_from_key``, (b) ``measured`` and (c) ``prior`` (module docstring)."""
+    by ``cur_from_key``, with ``distance_change`` (m, a std) of process noise added to its
+    distance, (b) ``measured`` and (c) ``prior`` (module docstring)."""
     if not np.all(np.isfinite(motion_covariance)):
         motion_covariance = np.zeros((6, 6))
-    beliefs = [propagate(key_plane, key_covariance, cur_from_key, motion_covariance)]
-    beliefs += [b for b in (measured, prior) if b is not None]
-    return fuse(beliefs)
+    carried = propagate(key_plane, key_covariance, cur_from_key, motion_covariance)
+    if distance_change > 0:
+        P = carried.covariance
+        P[0, 0] += distance_change ** 2
+        carried = PlaneBelief(carried.plane, np.linalg.inv(P))
+    return fuse([carried] + [b for b in (measured, prior) if b is not None])
 
 
 def transported(belief: PlaneBelief, b_from_a: np.ndarray) -> PlaneBelief:

@@ -21,6 +21,7 @@ from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane_belief import (
     CONFIRMED_DEG,
     CONSISTENT_CHI2,
+    DISTANCE_CHANGE,
     PLANE_SETTLED_DEG,
     PlaneBelief,
     default_sigmas,
@@ -101,7 +102,8 @@ class PlaneTracker:
         """The plane of a keyframe anchored on the current frame (finest level ``image``,
         ``cur_from_key`` its pose): ``(plane in its camera, covariance, gain, bias)``, the MAP
         of the plane carried by the motion, the joint refinement's normal and the mounting
-        prior; the brightness model is the refinement's. If the beliefs cannot be combined
+        prior (with DISTANCE_CHANGE of process noise on the carried distance); the brightness
+        model is the refinement's. If the beliefs cannot be combined
         the carried plane comes back with covariance None."""
         fit = refine_plane_and_motion(key.levels[0].points, image, cur_from_key, key.plane,
                                       gain=gain, bias=bias, options=options, iterations=4)
@@ -109,7 +111,8 @@ class PlaneTracker:
             transported(fit.measured, orthonormalize(fit.cur_from_key))
         try:
             belief = keyframe_plane(key.plane, self.covariance, cur_from_key, est.covariance,
-                                    measured=measured, prior=self.mounting)
+                                    measured=measured, prior=self.mounting,
+                                    distance_change=DISTANCE_CHANGE * key.plane.distance)
         except (ValueError, np.linalg.LinAlgError):
             return key.plane.in_frame(cur_from_key), None, fit.gain, fit.bias
         return belief.plane, belief.covariance, fit.gain, fit.bias
