@@ -236,7 +236,7 @@ def _points(value: str) -> int:
 
 def add_points_option(ap) -> None:
     """``--max-points N|all``: monovo's observation-point cap (default: the tool's own default)."""
-    from monovo_cli.core.odometry import TrackOptions
+    from monovo_cli.core.options import TrackOptions
 
     per = TrackOptions().pixels_per_point
     ap.add_argument("--max-points", type=_points, default=None, metavar="N|all",
@@ -267,7 +267,7 @@ def options_note(args) -> str:
 def track_options(args):
     """monovo's TrackOptions for a benchmark run: the dataclass defaults, but ``--max-points``
     when it was given (the only option the benchmarks vary)."""
-    from monovo_cli.core.odometry import TrackOptions
+    from monovo_cli.core.options import TrackOptions
 
     max_points = getattr(args, "max_points", None)
     return TrackOptions() if max_points is None else TrackOptions(max_points=max_points)

@@ -18,7 +18,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
 
 
 from benchmarks.common import drive_arguments, final_drift, machine  # noqa: E402
-from monovo_cli.core.odometry import TrackOptions  # noqa: E402
+from monovo_cli.core.options import TrackOptions  # noqa: E402
 from monovo_cli.io.formats import read_motion_csv, read_tum  # noqa: E402
 from monovo_cli.pipeline.track import track_sequence  # noqa: E402
 from monovo_cli.synth.write import synthesize  # noqa: E402

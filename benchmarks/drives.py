@@ -31,7 +31,8 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from benchmarks.common import final_drift, machine, motion_errors, std_columns  # noqa: E402
-from monovo_cli.core.odometry import TrackOptions, track  # noqa: E402
+from monovo_cli.core.odometry import track  # noqa: E402
+from monovo_cli.core.options import TrackOptions  # noqa: E402
 from monovo_cli.io.config import load_init  # noqa: E402
 from monovo_cli.io.formats import read_motion_csv, read_tum  # noqa: E402
 from monovo_cli.io.frames import FrameSequence  # noqa: E402

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import drive_arguments, machine
-from monovo_cli.core.odometry import TrackOptions
+from monovo_cli.core.options import TrackOptions
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_motion_csv, read_trajectory_csv, read_tum
 from monovo_cli.pipeline.overlay import overlay_sequence

@@ -36,7 +36,8 @@ from benchmarks.common import (
     options_note,
     track_options,
 )
-from monovo_cli.core.odometry import TrackOptions, track
+from monovo_cli.core.odometry import track
+from monovo_cli.core.options import TrackOptions
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_motion_csv
 from monovo_cli.io.frames import FrameSequence

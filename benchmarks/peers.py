@@ -66,7 +66,7 @@ from benchmarks.common import (
     track_options,
 )
 from benchmarks.paper_tables import run_pairs
-from monovo_cli.core.odometry import TrackOptions
+from monovo_cli.core.options import TrackOptions
 from monovo_cli.geometry.lie import make_pose, se3_inv
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.config import load_init

@@ -44,7 +44,8 @@ from pathlib import Path
 
 from benchmarks.common import Stopwatch, final_drift, load, machine, one_core
 from benchmarks.peers import EccPeer, peer_on_drive
-from monovo_cli.core.odometry import TrackOptions, track
+from monovo_cli.core.odometry import track
+from monovo_cli.core.options import TrackOptions
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_tum
 from monovo_cli.io.frames import FrameSequence

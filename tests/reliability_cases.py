@@ -276,7 +276,7 @@ def _all(*setups: Callable[[Path, Path], None]) -> Callable[[Path, Path], None]:
 
 def _model_other_size(tmp: Path, seq: Path) -> None:
     """A model.npz built on a 96x96 sequence."""
-    from monovo_cli.core.odometry import TrackOptions
+    from monovo_cli.core.options import TrackOptions
     from monovo_cli.pipeline.track import init_model
     from monovo_cli.synth.write import synthesize
 
@@ -287,7 +287,7 @@ def _model_other_size(tmp: Path, seq: Path) -> None:
 
 def _tracked(tmp: Path, seq: Path) -> Path:
     """Track ``seq`` into ``tmp/out`` (motion.csv, trajectory.csv, trajectory.tum)."""
-    from monovo_cli.core.odometry import TrackOptions
+    from monovo_cli.core.options import TrackOptions
     from monovo_cli.pipeline.track import track_sequence
 
     out = tmp / "out"

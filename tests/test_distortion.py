@@ -4,7 +4,8 @@ import cv2
 import numpy as np
 import pytest
 
-from monovo_cli.core.odometry import TrackOptions, track
+from monovo_cli.core.odometry import track
+from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import se3_inv, so3_log

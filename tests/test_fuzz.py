@@ -195,7 +195,7 @@ def test_fuzz_read_motion_stats(scratch, data):
 
 @pytest.fixture(scope="module")
 def model_bytes(tmp_path_factory) -> bytes:
-    from monovo_cli.core.odometry import TrackOptions
+    from monovo_cli.core.options import TrackOptions
     from monovo_cli.pipeline.track import init_model
     from monovo_cli.synth.write import synthesize
 

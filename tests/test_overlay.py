@@ -13,7 +13,7 @@ import pytest
 from click.testing import CliRunner
 
 from monovo_cli.cli import main
-from monovo_cli.core.odometry import TrackOptions
+from monovo_cli.core.options import TrackOptions
 from monovo_cli.errors import InputError, OutputError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import make_pose, pose_from_vectors

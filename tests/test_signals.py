@@ -163,7 +163,7 @@ def test_kill9_leaves_whole_files_and_a_rerun_reproduces(drive, tmp_path, seed):
 _CHECKPOINT_EVERY_FRAME = """
 import sys
 from pathlib import Path
-from monovo_cli.core.odometry import TrackOptions
+from monovo_cli.core.options import TrackOptions
 from monovo_cli.pipeline.track import track_sequence
 track_sequence(Path(sys.argv[1]), None, Path(sys.argv[2]), TrackOptions(), checkpoint_every=1)
 """

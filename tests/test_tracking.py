@@ -12,7 +12,8 @@ import pytest
 
 from monovo_cli.core.ground import barycentric
 from monovo_cli.core.keyframe import build_keyframe
-from monovo_cli.core.odometry import TrackOptions, track
+from monovo_cli.core.odometry import track
+from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.lie import se3_inv, so3_log
 from monovo_cli.io.config import load_init

@@ -38,9 +38,9 @@ from monovo_cli.core.robust import inlier_fraction
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
-from monovo_cli.geometry.lie import orthonormalize, se3_inv, skew, so3_log
+from monovo_cli.geometry.lie import adjoint, orthonormalize, output_covariance, se3_inv, so3_log
 from monovo_cli.geometry.plane import Plane
-from monovo_cli.image.gradients import estimate_noise_sigma
+from monovo_cli.image.gradients import difference_sigma, estimate_noise_sigma
 from monovo_cli.image.pyramid import build_pyramid
 
 
@@ -69,26 +69,8 @@ class FrameResult:
     reason: str = ""
 
 
-NOISE_CAP = 12.0  # grey levels: the most current-frame noise the loss checks allow for
 CHANCE_SHARE = 0.5  # a fit leaving half the keyframe's intensity variance is no fit
 REINIT_NOISE_SHARE = 0.3  # a fresh keyframe needs noise below this share of the contrast
-
-
-def adjoint(T: np.ndarray) -> np.ndarray:
-    """6x6 adjoint of a 4x4 pose for twists ordered (v, w)."""
-    R, t = T[:3, :3], T[:3, 3]
-    A = np.zeros((6, 6))
-    A[:3, :3] = R
-    A[:3, 3:] = skew(t) @ R
-    A[3:, 3:] = R
-    return A
-
-
-def output_covariance(cov_xi: np.ndarray, pose: np.ndarray) -> np.ndarray:
-    """Covariance of (t, rotvec) of ``pose`` from that of its left-perturbation twist (6, 6)."""
-    A = np.eye(6)
-    A[:3, 3:] = -skew(pose[:3, 3])
-    return A @ cov_xi @ A.T
 
 
 class OdometryState(Enum):
@@ -123,7 +105,7 @@ class Odometry:
         self._state = OdometryState.STARTING
         self._gain, self._bias = 1.0, 0.0
         self._recent_msd: deque[float] = deque(maxlen=15)
-        self._sigma = 1.0  # noise sigma of the current frame's differences (see _residual_sigma)
+        self._sigma = 1.0  # noise sigma of the current frame's differences (difference_sigma)
         self._chance_msd = np.inf  # msd of unrelated images (see step)
         self._prev_image: np.ndarray | None = None
         self._key_image: np.ndarray | None = None  # the keyframe's image (feature hypothesis)
@@ -165,7 +147,7 @@ class Odometry:
         if not np.all(np.isfinite(image)) or float(image.std()) < 1e-3:
             return self._lost(index, timestamp, "constant or invalid image")
         pyr = build_pyramid(image, len(key.levels))
-        self._sigma = self._residual_sigma(key, image)
+        self._sigma = difference_sigma(key.noise_sigma, image)
         # what unrelated images would give (the brightness fit free): the keyframe points'
         # intensity variance
         self._chance_msd = float(np.var(key.levels[0].points.intensity))
@@ -270,21 +252,6 @@ class Odometry:
                            self._gain, self._bias, reason)
 
     # -- checks -----------------------------------------------------------------------
-    @staticmethod
-    def _residual_sigma(key: Keyframe, image: np.ndarray) -> float:
-        """Per-image noise sigma that the intensity differences of this frame carry.
-
-        A difference holds the keyframe's noise and the current frame's, which need not be
-        alike (a noise-free or well-lit keyframe, a darker, noisier frame later): the result
-        is sqrt((s_key^2 + s_cur^2) / 2), with s_cur measured on the central quarter of the
-        frame and capped at max(12, 3 s_key) grey levels so that a frame of pure noise does
-        not excuse itself.
-        """
-        h, w = image.shape
-        s_cur = estimate_noise_sigma(image[h // 4: h - h // 4, w // 4: w - w // 4])
-        s_cur = min(s_cur, max(NOISE_CAP, 3.0 * key.noise_sigma))
-        return float(np.sqrt(0.5 * (key.noise_sigma ** 2 + s_cur ** 2)))
-
     def _search(self, key: Keyframe, pyr: list[np.ndarray], guess: np.ndarray) -> np.ndarray:
         return coarse_search(key.levels[-1], pyr[-1], guess, options=self.options.estimator,
                              noise_sigma=self._sigma, gain=self._gain, bias=self._bias)

@@ -162,3 +162,20 @@ def matrix_from_quat(q: np.ndarray) -> np.ndarray:
         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
     ])
+
+
+def adjoint(T: np.ndarray) -> np.ndarray:
+    """6x6 adjoint of a 4x4 pose for twists ordered (v, w)."""
+    R, t = T[:3, :3], T[:3, 3]
+    A = np.zeros((6, 6))
+    A[:3, :3] = R
+    A[:3, 3:] = skew(t) @ R
+    A[3:, 3:] = R
+    return A
+
+
+def output_covariance(cov_xi: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    """Covariance of (t, rotvec) of ``pose`` from that of its left-perturbation twist (6, 6)."""
+    A = np.eye(6)
+    A[:3, 3:] = -skew(pose[:3, 3])
+    return A @ cov_xi @ A.T

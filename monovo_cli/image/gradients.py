@@ -55,3 +55,21 @@ def estimate_noise_sigma(image: np.ndarray) -> float:
     k = np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], dtype=np.float32)
     resp = cv2.filter2D(image.astype(np.float32), -1, k, borderType=cv2.BORDER_REFLECT)[1:-1, 1:-1]
     return float(np.sqrt(np.pi / 2.0) / 6.0 * np.mean(np.abs(resp)))
+
+
+NOISE_CAP = 12.0  # grey levels: the most current-frame noise the loss checks allow for
+
+
+def difference_sigma(key_sigma: float, image: np.ndarray) -> float:
+    """Noise sigma (grey levels) that intensity differences between a keyframe of noise
+    ``key_sigma`` and ``image`` (H, W) carry.
+
+    The two need not be alike (a noise-free or well-lit keyframe, a darker, noisier frame
+    later): the result is sqrt((s_key^2 + s_cur^2) / 2), with s_cur measured on the central
+    quarter of ``image`` and capped at max(12, 3 s_key) grey levels so that a frame of pure
+    noise does not excuse itself.
+    """
+    h, w = image.shape
+    s_cur = estimate_noise_sigma(image[h // 4: h - h // 4, w // 4: w - w // 4])
+    s_cur = min(s_cur, max(NOISE_CAP, 3.0 * key_sigma))
+    return float(np.sqrt(0.5 * (key_sigma ** 2 + s_cur ** 2)))

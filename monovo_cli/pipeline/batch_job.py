@@ -21,7 +21,7 @@ from monovo_cli import __version__
 from monovo_cli.errors import InputError, MonovoError, OutputError
 
 if TYPE_CHECKING:
-    from monovo_cli.core.odometry import TrackOptions
+    from monovo_cli.core.options import TrackOptions
 
 FRAMES_SUBDIR = "frames"  # as monovo_cli.io.frames (not imported here: it loads OpenCV)
 INIT_FILE = "init.yaml"
@@ -34,7 +34,7 @@ log = logging.getLogger(__name__)
 
 
 def _default_track_options() -> TrackOptions:
-    from monovo_cli.core.odometry import TrackOptions  # loads OpenCV: not at import time
+    from monovo_cli.core.options import TrackOptions  # loads OpenCV: not at import time
 
     return TrackOptions()
 

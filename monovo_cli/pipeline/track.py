@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from monovo_cli.core.keyframe import Keyframe, build_keyframe
-from monovo_cli.core.odometry import FrameResult, TrackOptions, track
+from monovo_cli.core.odometry import FrameResult, track
+from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import InputError, OutputError, TrackingError
 from monovo_cli.geometry.plane import Plane
