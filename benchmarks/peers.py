@@ -265,9 +265,10 @@ def peer_on_drive(peer, seq: Path) -> MethodResult:
                         final_drift(np.array(poses), gt_traj))
 
 
-def monovo_on_drive(seq: Path, out: Path, options=None) -> MethodResult:
+def monovo_on_drive(seq: Path, out: Path, options=None, **track_kw) -> MethodResult:
+    """monovo end to end on a drive (``track_kw``: more arguments of ``track_sequence``)."""
     with Stopwatch() as watch:
-        track_sequence(seq, None, out, options or TrackOptions())
+        track_sequence(seq, None, out, options or TrackOptions(), **track_kw)
     _, est, _ = read_motion_csv(out / "motion.csv")
     _, gt, _ = read_motion_csv(seq / "groundtruth_motion.csv")
     _, traj = read_tum(out / "trajectory.tum")

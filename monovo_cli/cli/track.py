@@ -27,23 +27,32 @@ from monovo_cli.cli.options import (
 @click.option("--groundtruth", type=click.Path(path_type=Path), default=None, metavar="GT.tum",
               help="A TUM ground truth to draw beside the estimate in trajectory.png.")
 @skip_bad_frames_option("stop with an error, keeping the rows done")
+@click.option("--terrain-out", is_flag=True,
+              help="Also write what tracking learned of the ground (with -o DIR): terrain.ply "
+                   "(the keyframes' points with intensity, world frame) and the driven strip's "
+                   "heights above frame 0's ground, heightmap.png and heightmap.csv.")
 @side_inputs()
 @track_options(LOOP)
 @common
 def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, skip_bad_frames,
-          mask, prior, covariance, options):
+          terrain_out, mask, prior, covariance, options):
     """Estimate the motion of every frame of SEQ; write motion.csv and the trajectory.
 
-    With -o DIR also trajectory.png, the path seen from above on the ground plane.
+    With -o DIR also trajectory.png, the path seen from above on the ground plane, and with
+    --terrain-out the terrain products.
     """
     from monovo_cli.pipeline.track import track_sequence
 
     to_stdout = out == "-"
+    if terrain_out and to_stdout:
+        from monovo_cli.errors import InputError
+
+        raise InputError("--terrain-out writes files: give an output directory (-o DIR), not -o -")
     with progress_bar(verbosity.quiet, "frame") as bar:
         s = track_sequence(seq, params, None if to_stdout else Path(out), options,
                            groundtruth=groundtruth, mask=mask, prior=prior, covariance=covariance,
                            model=model, overwrite=overwrite, skip_bad_frames=skip_bad_frames,
-                           topic=topic, progress=bar)
+                           topic=topic, terrain_out=terrain_out, progress=bar)
     if not verbosity.quiet:
         click.echo(f"tracked {s.frames} frames in {s.seconds:.1f} s ({s.fps:.1f} frames/s): "
                    f"mean msd {s.mean_msd:.2f}, {s.reanchored} re-anchored, {s.reinit} re-initialised, "

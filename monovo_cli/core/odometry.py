@@ -18,8 +18,9 @@ The ground model itself is built by :mod:`monovo_cli.core.keyframe`; the setting
 
 from __future__ import annotations
 
+import itertools
 from collections import deque
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, replace
 from enum import Enum
 
@@ -317,8 +318,7 @@ class Odometry:
         return 0.5 * (cov + cov.T)
 
     def _settle_plane(self, pyr: list[np.ndarray], est: Estimate) -> Estimate:
-        """Test a keyframe plane known only from the prior on this frame (PlaneTracker.test);
-        a corrected one replaces the keyframe if the frame's new estimate passes the checks."""
+        """PlaneTracker.test; a corrected plane's keyframe is kept if its estimate passes."""
         found = self._plane.test(self._key, self._key_image, pyr, est, self.camera,
                                  self.region, self.options, self.mask)
         if found is None or self._failure(found[1], found[0]):
@@ -373,14 +373,16 @@ def track(frames: Iterable[tuple[int, float, np.ndarray | None]], camera: Pinhol
           plane: Plane, region: tuple[int, int, int, int], options: TrackOptions | None = None,
           *, mask: np.ndarray | None = None, first_keyframe: Keyframe | None = None,
           priors: Mapping[int, np.ndarray] | None = None, sigma_distance: float | None = None,
-          sigma_deg: float | None = None) -> Iterator[FrameResult]:
+          sigma_deg: float | None = None,
+          on_keyframe: Callable[[Keyframe], None] | None = None) -> Iterator[FrameResult]:
     """Yield a :class:`FrameResult` per ``(index, timestamp, image)``, frame 0 first: the one
     driver of :class:`Odometry` (``monovo track`` runs it too).
 
     ``image`` (H, W) float32, or None for a frame that could not be read (recorded lost at
     the prediction); frame 0 must have one (it carries the ground model unless
     ``first_keyframe`` is given). ``priors`` maps a frame index to its prior motion
-    T_{k-1}_k (4x4); ``sigma_distance``/``sigma_deg`` the mounting prior's width.
+    T_{k-1}_k (4x4); ``sigma_distance``/``sigma_deg`` the mounting prior's width;
+    ``on_keyframe(keyframe)`` is called for every keyframe anchored (or rebuilt in place).
     """
     odo = Odometry(camera, plane, region, options, mask=mask, first_keyframe=first_keyframe,
                    sigma_distance=sigma_distance, sigma_deg=sigma_deg)
@@ -389,9 +391,10 @@ def track(frames: Iterable[tuple[int, float, np.ndarray | None]], camera: Pinhol
         index, ts, image = next(it)
     except StopIteration:
         return
-    yield odo.start(index, ts, image)
-    for index, ts, image in it:
-        if image is None:
-            yield odo.skip(index, ts)
-        else:
-            yield odo.step(index, ts, image, None if priors is None else priors.get(index))
+    seen, first = None, odo.start(index, ts, image)
+    for res in itertools.chain([first], (odo.skip(i, t) if im is None else
+                                         odo.step(i, t, im, (priors or {}).get(i))
+                                         for i, t, im in it)):
+        if on_keyframe is not None and odo.keyframe is not seen:
+            on_keyframe(seen := odo.keyframe)
+        yield res

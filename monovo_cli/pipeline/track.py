@@ -27,6 +27,7 @@ from monovo_cli.core.keyframe import Keyframe, build_keyframe
 from monovo_cli.core.odometry import FrameResult, track
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.status import FrameStatus
+from monovo_cli.core.terrain_map import TerrainMap
 from monovo_cli.errors import InputError, OutputError, TrackingError
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.atomic import atomic_write_text
@@ -44,7 +45,8 @@ from monovo_cli.pipeline.preflight import (
 
 log = logging.getLogger(__name__)
 
-RESULT_FILES = ("motion.csv", "trajectory.csv", "trajectory.tum", "trajectory.png")
+RESULT_FILES = ("motion.csv", "trajectory.csv", "trajectory.tum", "trajectory.png",
+                "terrain.ply", "heightmap.png", "heightmap.csv")
 
 
 @dataclass(frozen=True)
@@ -172,7 +174,7 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                    skip_bad_frames: bool = False, checkpoint_every: int = 100,
                    groundtruth: Path | None = None, mask: Path | None = None,
                    prior: Path | None = None, covariance: Path | None = None,
-                   topic: str | None = None,
+                   topic: str | None = None, terrain_out: bool = False,
                    progress: Callable[[int, int], None] | None = None) -> TrackSummary:
     """``monovo track``: estimate every frame's motion and write motion.csv, trajectory.csv
     and trajectory.tum (docs/guide.md "File formats").
@@ -189,6 +191,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     constant-velocity guess; ``covariance`` a CSV written row by row with each frame's full
     6x6 covariance of (tx, ty, tz, rx, ry, rz) (m, deg). ``topic`` the image topic of a ROS
     bag. Every side input is checked before anything is written (:mod:`.preflight`).
+    ``terrain_out`` (with an output directory): also terrain.ply, heightmap.png and
+    heightmap.csv, what tracking learned of the ground (:func:`write_terrain`).
     ``progress(done, total)`` is called after every frame.
     """
     check_covariance_path(covariance, out_dir)
@@ -231,9 +235,11 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     try:
         writer = MotionWriter(stream, with_std=True, with_reason=True)
         cov_writer = CovarianceWriter(_open_output(Path(covariance))) if covariance else None
+        terrain = TerrainMap(cfg.plane) if terrain_out and out_dir is not None else None
         tracked = track(_read_frames(frames, skip_bad_frames, out_dir), cfg.camera, cfg.plane,
                         cfg.region, options, mask=usable, first_keyframe=first_key, priors=priors,
-                        sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg)
+                        sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg,
+                        on_keyframe=terrain.add if terrain is not None else None)
         with _naming(frames.paths[0]):  # frame 0 builds the ground model
             first = next(tracked)
         prev = None
@@ -267,8 +273,27 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     seconds = time.perf_counter() - t0
     if out_dir is not None:
         _write_trajectory_plot(Path(out_dir), cfg.plane, results, gt_poses)
+        if terrain is not None:
+            write_terrain(Path(out_dir), terrain, np.array([pose for _, _, pose in results]))
     return TrackSummary(len(results), float(np.mean(msds)) if msds else 0.0, seconds, lost,
                         reanchored, dist, Path(out_dir) if out_dir is not None else None, reinit)
+
+
+def write_terrain(out_dir: Path, terrain: TerrainMap, world_from_cam: np.ndarray) -> None:
+    """``terrain.ply``, ``heightmap.csv`` and ``heightmap.png`` (the camera path drawn over
+    the heights) of ``terrain`` into ``out_dir`` (:mod:`monovo_cli.io.terrain`)."""
+    from monovo_cli.io.terrain import write_heightmap_csv, write_ply
+    from monovo_cli.io.video import write_png_atomic
+    from monovo_cli.viz.heightmap import plot_height_map
+
+    X, intensity = terrain.points()
+    write_ply(out_dir / "terrain.ply", X, intensity)
+    grid = terrain.height_grid()
+    G = terrain.ground_from_world
+    write_heightmap_csv(out_dir / "heightmap.csv", grid, G)
+    path = world_from_cam[:, :3, 3] @ G[:3, :3].T + G[:3, 3]
+    title = f"{out_dir.name}: heights above frame 0's ground, {len(X)} points"
+    write_png_atomic(out_dir / "heightmap.png", plot_height_map(grid, path=path[:, :2], title=title))
 
 
 def _read_frames(frames: FrameSequence, skip_bad_frames: bool,

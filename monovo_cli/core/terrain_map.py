@@ -1,0 +1,117 @@
+"""What tracking learned of the ground: the keyframes' observation points in the world frame.
+
+Every keyframe's finest-level observation points (keyframe camera, on its plane) are moved
+into the world frame (camera 0's) with the keyframe's pose; a keyframe rebuilt in place (the
+frame-0 plane corrected) replaces its points. Heights are measured in the **ground frame** of
+the first keyframe's plane (frame 0's ground as tracking measured it: init.yaml's plane, or
+the tilt the first frames corrected it to): origin at the foot of camera 0 on the plane,
+``forward`` camera 0's optical axis projected onto it, ``right = normal x forward``,
+``up = -normal`` (heights above the plane, m), the axes of ``trajectory.png``.
+:meth:`TerrainMap.height_grid` bins the points into square cells of the driven strip: a
+cell's height is the mean of its points'.
+
+Pure: no I/O (the files are written by :mod:`monovo_cli.io.terrain`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from monovo_cli.core.keyframe import Keyframe
+from monovo_cli.geometry.plane import Plane
+
+POINTS_PER_KEYFRAME = 10000  # at most this many of a keyframe's points (every k-th) are kept
+CELL = 0.05  # m, default cell of the height grid
+
+
+def ground_frame(plane: Plane) -> np.ndarray:
+    """``ground_from_world`` (4x4): the ground frame of ``plane`` (init.yaml's, camera 0)."""
+    n = plane.normal
+    z = np.array([0.0, 0.0, 1.0])
+    forward = z - (z @ n) * n
+    if np.linalg.norm(forward) < 1e-9:  # looking straight down: image up
+        y = np.array([0.0, -1.0, 0.0])
+        forward = y - (y @ n) * n
+    forward /= np.linalg.norm(forward)
+    right = np.cross(n, forward)
+    R = np.stack([right, forward, -n])  # rows: the ground axes in world coordinates
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = -R @ (plane.distance * n)
+    return T
+
+
+@dataclass(frozen=True)
+class HeightGrid:
+    """Heights of the driven strip: ``height`` (H, W) m (NaN where no point fell), ``count``
+    (H, W) points per cell; cell ``[j, i]`` covers right ``x0 + i * cell`` ..  ``+ cell`` and
+    forward ``y0 + j * cell`` .. ``+ cell`` (m, ground frame)."""
+
+    x0: float
+    y0: float
+    cell: float
+    height: np.ndarray
+    count: np.ndarray
+
+
+class TerrainMap:
+    """The keyframes' observation points in the world frame (module docstring)."""
+
+    def __init__(self, plane: Plane, points_per_keyframe: int = POINTS_PER_KEYFRAME) -> None:
+        self.plane0 = plane  # (init.yaml's: the ground frame until a keyframe comes)
+        self.points_per_keyframe = int(points_per_keyframe)
+        self._chunks: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._planes: dict[int, Plane] = {}
+
+    @property
+    def ground_from_world(self) -> np.ndarray:
+        """4x4: the ground frame (module docstring) of the first keyframe's plane."""
+        return ground_frame(self._planes[min(self._planes)] if self._planes else self.plane0)
+
+    def add(self, key: Keyframe, X: np.ndarray | None = None) -> None:
+        """A keyframe's finest-level points (``X`` (N, 3) in its camera replaces the points'
+        own positions, e.g. refined depths); replaces an earlier keyframe of the same index."""
+        pts = key.levels[0].points
+        X = pts.X if X is None else X
+        step = max(1, -(-len(pts) // self.points_per_keyframe))
+        Xw = X[::step] @ key.world_from_key[:3, :3].T + key.world_from_key[:3, 3]
+        ok = np.all(np.isfinite(Xw), axis=1)
+        self._chunks[key.index] = (Xw[ok], pts.intensity[::step][ok].astype(np.float32))
+        self._planes[key.index] = key.plane.in_frame(key.world_from_key)
+
+    def __len__(self) -> int:
+        return sum(len(x) for x, _ in self._chunks.values())
+
+    def points(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(X (N, 3) world frame m, intensity (N,) grey levels)`` of all keyframes, in order."""
+        if not self._chunks:
+            return np.zeros((0, 3)), np.zeros(0, np.float32)
+        keys = sorted(self._chunks)
+        return (np.concatenate([self._chunks[k][0] for k in keys]),
+                np.concatenate([self._chunks[k][1] for k in keys]))
+
+    def ground_points(self) -> np.ndarray:
+        """The points (N, 3) in the ground frame: right, forward, height (m)."""
+        X, _ = self.points()
+        G = self.ground_from_world
+        return X @ G[:3, :3].T + G[:3, 3]
+
+    def height_grid(self, cell: float = CELL) -> HeightGrid:
+        """The mean height per ``cell`` x ``cell`` m cell over the points' extent."""
+        P = self.ground_points()
+        if not len(P):
+            return HeightGrid(0.0, 0.0, cell, np.full((0, 0), np.nan), np.zeros((0, 0), int))
+        x0 = np.floor(P[:, 0].min() / cell) * cell
+        y0 = np.floor(P[:, 1].min() / cell) * cell
+        i = np.floor((P[:, 0] - x0) / cell).astype(np.int64)
+        j = np.floor((P[:, 1] - y0) / cell).astype(np.int64)
+        w, h = int(i.max()) + 1, int(j.max()) + 1
+        flat = j * w + i
+        count = np.bincount(flat, minlength=w * h)
+        total = np.bincount(flat, weights=P[:, 2], minlength=w * h)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            height = np.where(count > 0, total / np.maximum(count, 1), np.nan)
+        return HeightGrid(float(x0), float(y0), float(cell), height.reshape(h, w),
+                          count.reshape(h, w))

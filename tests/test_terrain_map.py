@@ -1,0 +1,119 @@
+"""The terrain products: the keyframes' points in the world frame, the height grid, the files."""
+
+import math
+from types import SimpleNamespace
+
+import cv2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from monovo_cli.cli import main
+from monovo_cli.core.terrain_map import TerrainMap, ground_frame
+from monovo_cli.geometry.lie import make_pose, so3_exp
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.io.terrain import HEIGHTMAP_HEADER, heightmap_csv_text, ply_bytes, read_ply
+
+N0 = np.array([0.0, math.cos(math.radians(40)), math.sin(math.radians(40))])
+
+
+class _Points:
+    """A keyframe level's points, as much of them as TerrainMap reads."""
+
+    def __init__(self, X, intensity=None):
+        self.X = np.asarray(X, float)
+        self.intensity = np.full(len(X), 100.0, np.float32) if intensity is None \
+            else np.asarray(intensity, np.float32)
+
+    def __len__(self):
+        return len(self.X)
+
+
+def fake_key(index, X, world_from_key=None, plane=None):
+    """What TerrainMap reads of a keyframe: its index, pose, plane and level-0 points."""
+    return SimpleNamespace(index=index, levels=(SimpleNamespace(points=_Points(X)),),
+                           world_from_key=np.eye(4) if world_from_key is None else world_from_key,
+                           plane=plane or Plane(N0, 1.5))
+
+
+def test_ground_frame_axes():
+    G = ground_frame(Plane(N0, 1.5))
+    # the foot of camera 0 on the plane is the origin; camera 0 is 1.5 m above it
+    assert np.allclose(G[:3, :3] @ (1.5 * N0) + G[:3, 3], 0.0)
+    assert np.allclose(G[:3, 3], [0.0, 0.0, 1.5])
+    # forward is camera 0's optical axis projected onto the plane; right-handed, z up
+    fwd = np.array([0.0, 0.0, 1.0]) - N0[2] * N0
+    assert np.allclose(G[1, :3], fwd / np.linalg.norm(fwd))
+    assert np.allclose(G[2, :3], -N0) and np.isclose(np.linalg.det(G[:3, :3]), 1.0)
+
+
+def test_points_on_the_planes_have_zero_height_and_a_rebuilt_keyframe_replaces_its_points():
+    plane = Plane(N0, 1.5)
+    rays = np.column_stack([np.linspace(-0.5, 0.5, 50), np.linspace(0.1, 0.6, 50), np.ones(50)])
+    tmap = TerrainMap(plane)
+    tmap.add(fake_key(0, plane.intersect(rays)))
+    # keyframe 3, 2 m along the ground and turned 30 deg about the ground normal: its plane
+    # in its camera is the same ground
+    world_from_key = make_pose(so3_exp(-N0 * math.radians(30)), 2.0 * np.cross(N0, [1.0, 0, 0]))
+    key_plane = plane.in_frame(np.linalg.inv(world_from_key))
+    tmap.add(fake_key(3, key_plane.intersect(rays), world_from_key, key_plane))
+    assert len(tmap) == 100
+    assert np.abs(tmap.ground_points()[:, 2]).max() < 1e-12
+    # keyframe 0 rebuilt on a plane 1 cm lower: its points are replaced, the frame follows it
+    lower = Plane(N0, 1.51)
+    tmap.add(fake_key(0, lower.intersect(rays), plane=lower))
+    assert len(tmap) == 100
+    h = tmap.ground_points()[:, 2]
+    assert np.allclose(h[:50], 0.0, atol=1e-12) and np.allclose(h[50:], 0.01, atol=1e-12)
+
+
+def test_height_grid_by_hand():
+    # looking straight down from 2 m (normal = optical axis): ground frame right = x,
+    # forward = -y (image up), height = 2 - z
+    tmap = TerrainMap(Plane([0.0, 0.0, 1.0], 2.0))
+    X = np.array([[0.01, -0.01, 2.0], [0.02, -0.02, 1.9],        # cell (0, 0): heights 0, 0.1
+                  [0.07, -0.01, 1.8],                           # cell (1, 0): 0.2
+                  [0.01, -0.12, 2.05]])                         # cell (0, 2): -0.05
+    tmap.add(fake_key(0, X, plane=Plane([0.0, 0.0, 1.0], 2.0)))
+    g = tmap.height_grid(cell=0.05)
+    assert (g.x0, g.y0, g.cell) == (0.0, 0.0, 0.05)
+    assert g.height.shape == (3, 2)
+    assert g.height[0, 0] == pytest.approx(0.05) and g.count[0, 0] == 2
+    assert g.height[0, 1] == pytest.approx(0.2)
+    assert g.height[2, 0] == pytest.approx(-0.05)
+    assert np.isnan(g.height[1, 0]) and g.count[1, 0] == 0
+    # heightmap.csv: the non-empty cells, their centres back in the world frame
+    lines = heightmap_csv_text(g, tmap.ground_from_world).splitlines()
+    assert lines[0] == HEIGHTMAP_HEADER and len(lines) == 4
+    row = [float(v) for v in lines[1].split(",")]
+    assert row[:4] == pytest.approx([0.025, 0.025, 0.05, 2])
+    assert row[4:] == pytest.approx([0.025, -0.025, 1.95])  # x, -forward, 2 - height
+
+
+def test_ply_round_trip():
+    X = np.array([[0.0, 1.0, 2.0], [-1.5, 0.25, 3.0]])
+    data = ply_bytes(X, np.array([12.4, 250.0]))
+    header = data[:data.index(b"end_header\n")].decode()
+    assert header.startswith("ply\nformat binary_little_endian 1.0\n")
+    assert "element vertex 2" in header and "property float intensity" in header
+    assert len(data) - len(header) - len("end_header\n") == 2 * (4 * 4 + 3)
+
+
+def test_track_terrain_out_on_a_plane_drive(tmp_path):
+    seq = tmp_path / "s"
+    r = CliRunner().invoke(main, ["synth", str(seq), "--frames", "30", "--size", "128x128",
+                                  "--seed", "2", "-q"])
+    assert r.exit_code == 0, r.output
+    out = tmp_path / "o"
+    r = CliRunner().invoke(main, ["track", str(seq), "-o", str(out), "--terrain-out", "-q"])
+    assert r.exit_code == 0, r.output
+    X, intensity = read_ply(out / "terrain.ply")
+    assert len(X) > 1000 and np.all((intensity >= 0) & (intensity <= 255))
+    # a plane drive with an exact init.yaml: every keyframe's points lie within a few mm of
+    # frame 0's ground (the drive's own small wobble of the camera is tracked)
+    cells = np.loadtxt(out / "heightmap.csv", delimiter=",", skiprows=1, ndmin=2)
+    assert np.sqrt(np.mean(cells[:, 2] ** 2)) < 0.005
+    img = cv2.imread(str(out / "heightmap.png"))
+    assert img is not None and img.shape[0] > 400
+    r = CliRunner().invoke(main, ["track", str(seq), "-o", "-", "--terrain-out"])
+    assert r.exit_code == 2 and "--terrain-out" in r.output and "Traceback" not in r.output
