@@ -2,11 +2,16 @@
 
 Every keyframe's finest-level observation points (keyframe camera, on its plane) are moved
 into the world frame (camera 0's) with the keyframe's pose; a keyframe rebuilt in place (the
-frame-0 plane corrected) replaces its points. Heights are measured in the **ground frame** of
-the first keyframe's plane (frame 0's ground as tracking measured it: init.yaml's plane, or
-the tilt the first frames corrected it to): origin at the foot of camera 0 on the plane,
-``forward`` camera 0's optical axis projected onto it, ``right = normal x forward``,
-``up = -normal`` (heights above the plane, m), the axes of ``trajectory.png``.
+frame-0 plane corrected) replaces its points. Given the images, a keyframe's points are
+moved along their rays to the depths its successor's image (or the last frame's) agrees
+with (:func:`~monovo_cli.core.depth.refine_depths`) when it is left, if ``refine`` (off by
+default: with the planar tracker's poses it does not improve the map yet, docs/algorithm.md
+section "Terrain"). Heights are measured
+in the **ground frame** of the first keyframe's plane (frame 0's ground as tracking
+measured it: init.yaml's plane, or the tilt the first frames corrected it to): origin at
+the foot of camera 0 on the plane, ``forward`` camera 0's optical axis projected onto it,
+``right = normal x forward``, ``up = -normal`` (heights above the plane, m), the axes of
+``trajectory.png``.
 :meth:`TerrainMap.height_grid` bins the points into square cells of the driven strip: a
 cell's height is the mean of its points'.
 
@@ -19,7 +24,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from monovo_cli.core.depth import refine_depths
 from monovo_cli.core.keyframe import Keyframe
+from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.geometry.plane import Plane
 
 POINTS_PER_KEYFRAME = 10000  # at most this many of a keyframe's points (every k-th) are kept
@@ -59,27 +66,62 @@ class HeightGrid:
 class TerrainMap:
     """The keyframes' observation points in the world frame (module docstring)."""
 
-    def __init__(self, plane: Plane, points_per_keyframe: int = POINTS_PER_KEYFRAME) -> None:
+    def __init__(self, plane: Plane, points_per_keyframe: int = POINTS_PER_KEYFRAME, *,
+                 refine: bool = False) -> None:
         self.plane0 = plane  # (init.yaml's: the ground frame until a keyframe comes)
         self.points_per_keyframe = int(points_per_keyframe)
+        self.refine = refine
         self._chunks: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._planes: dict[int, Plane] = {}
+        self._last: Keyframe | None = None
+        self._last_image: np.ndarray | None = None
+        self.refined = 0  # points whose depth the images updated
 
     @property
     def ground_from_world(self) -> np.ndarray:
         """4x4: the ground frame (module docstring) of the first keyframe's plane."""
         return ground_frame(self._planes[min(self._planes)] if self._planes else self.plane0)
 
-    def add(self, key: Keyframe, X: np.ndarray | None = None) -> None:
-        """A keyframe's finest-level points (``X`` (N, 3) in its camera replaces the points'
-        own positions, e.g. refined depths); replaces an earlier keyframe of the same index."""
-        pts = key.levels[0].points
-        X = pts.X if X is None else X
-        step = max(1, -(-len(pts) // self.points_per_keyframe))
-        Xw = X[::step] @ key.world_from_key[:3, :3].T + key.world_from_key[:3, 3]
-        ok = np.all(np.isfinite(Xw), axis=1)
-        self._chunks[key.index] = (Xw[ok], pts.intensity[::step][ok].astype(np.float32))
+    def add(self, key: Keyframe, image: np.ndarray | None = None) -> None:
+        """A keyframe's finest-level points; replaces an earlier keyframe of the same index.
+        ``image`` (H, W) float32: the keyframe's own image, against which the previous
+        keyframe's depths are refined (at the new keyframe's pose)."""
+        last = self._last
+        if last is not None and last.index != key.index and image is not None:
+            self._refine(last, image, se3_inv(key.world_from_key) @ last.world_from_key)
+        self._store(key, key.levels[0].points.X[::self._step(key)])
         self._planes[key.index] = key.plane.in_frame(key.world_from_key)
+        if last is None or last.index != key.index:  # (a rebuilt keyframe keeps its image)
+            self._last_image = image
+        self._last = key
+
+    def finish(self, image: np.ndarray | None, world_from_cam: np.ndarray) -> None:
+        """The last frame (``image``, pose ``world_from_cam``): refine the last keyframe's
+        depths against it."""
+        last = self._last
+        if last is not None and image is not None:
+            self._refine(last, image, se3_inv(world_from_cam) @ last.world_from_key)
+
+    def _step(self, key: Keyframe) -> int:
+        return max(1, -(-len(key.levels[0].points) // self.points_per_keyframe))
+
+    def _store(self, key: Keyframe, X: np.ndarray) -> None:
+        """``X`` (N, 3): the subsampled points of ``key`` in its camera."""
+        pts = key.levels[0].points
+        Xw = X @ key.world_from_key[:3, :3].T + key.world_from_key[:3, 3]
+        ok = np.all(np.isfinite(Xw), axis=1)
+        self._chunks[key.index] = (Xw[ok], pts.intensity[::self._step(key)][ok].astype(np.float32))
+
+    def _refine(self, key: Keyframe, image: np.ndarray, cur_from_key: np.ndarray) -> None:
+        pts = key.levels[0].points
+        if not self.refine or pts.camera.has_distortion or \
+                float(np.linalg.norm(cur_from_key[:3, 3])) < 1e-3 * key.plane.distance:
+            return  # (no baseline: the images cannot tell depths apart)
+        step = self._step(key)
+        d = refine_depths(pts.camera, key.plane, pts.X[::step], pts.intensity[::step], image,
+                          cur_from_key, key_image=self._last_image)
+        self._store(key, d.X)
+        self.refined += int(np.count_nonzero(d.measured))
 
     def __len__(self) -> int:
         return sum(len(x) for x, _ in self._chunks.values())

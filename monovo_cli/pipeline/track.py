@@ -236,10 +236,12 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
         writer = MotionWriter(stream, with_std=True, with_reason=True)
         cov_writer = CovarianceWriter(_open_output(Path(covariance))) if covariance else None
         terrain = TerrainMap(cfg.plane) if terrain_out and out_dir is not None else None
-        tracked = track(_read_frames(frames, skip_bad_frames, out_dir), cfg.camera, cfg.plane,
-                        cfg.region, options, mask=usable, first_keyframe=first_key, priors=priors,
+        images = _LastImage(_read_frames(frames, skip_bad_frames, out_dir), keep=terrain)
+        tracked = track(images, cfg.camera, cfg.plane, cfg.region, options, mask=usable,
+                        first_keyframe=first_key, priors=priors,
                         sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg,
-                        on_keyframe=terrain.add if terrain is not None else None)
+                        on_keyframe=None if terrain is None else
+                        lambda key: terrain.add(key, images.last))
         with _naming(frames.paths[0]):  # frame 0 builds the ground model
             first = next(tracked)
         prev = None
@@ -274,9 +276,26 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     if out_dir is not None:
         _write_trajectory_plot(Path(out_dir), cfg.plane, results, gt_poses)
         if terrain is not None:
+            terrain.finish(images.last, results[-1][2])
             write_terrain(Path(out_dir), terrain, np.array([pose for _, _, pose in results]))
     return TrackSummary(len(results), float(np.mean(msds)) if msds else 0.0, seconds, lost,
                         reanchored, dist, Path(out_dir) if out_dir is not None else None, reinit)
+
+
+class _LastImage:
+    """Iterates ``frames`` and, when ``keep`` is set, remembers the last image (``last``)."""
+
+    def __init__(self, frames: Iterator[tuple[int, float, np.ndarray | None]], keep) -> None:
+        self._frames, self._keep, self.last = frames, keep is not None, None
+
+    def __iter__(self):
+        return self
+
+    def __next__(self) -> tuple[int, float, np.ndarray | None]:
+        index, ts, image = next(self._frames)
+        if self._keep:
+            self.last = image
+        return index, ts, image
 
 
 def write_terrain(out_dir: Path, terrain: TerrainMap, world_from_cam: np.ndarray) -> None:
