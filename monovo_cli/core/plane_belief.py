@@ -16,10 +16,14 @@ of the informations, iterated on the sphere) of
     propagated with the motion's (:func:`propagate`): a distance error scales the
     translation with it (the images fix t / d), so it is carried as ``d_cur / d_key`` times
     itself; the motion's error adds ``-n . v`` to the distance and ``n x w`` to the normal.
-    Then a process noise of DISTANCE_CHANGE times the distance: on ground that is not a
-    plane the carried distance errs by more than the motion's covariance knows (its model
-    error, ~1 % per keyframe on the benchmark's terrain), and the new keyframe's patch of
-    ground is not the old one;
+    Then a process noise of DISTANCE_CHANGE times the distance and TILT_CHANGE_DEG on each
+    tilt: on ground that is not a plane the carried plane errs by more than the motion's
+    covariance knows (its model error, ~1 % of the distance per keyframe on the benchmark's
+    terrain), and the new keyframe's patch of ground is not the old one (a road's ramp, a
+    swell: the patch ahead turns by a fraction of a degree to a degree from the last). Without
+    the tilt's, the carried normal's information only grows from keyframe to keyframe and
+    the images' normal of each new patch, biased on curved ground, walks it away unchecked by
+    the mounting prior (KITTI's on-ramp: 10 deg of roll over 50 m, 17 % of the distance);
 (b) the plane measured from the images at that keyframe: the normal from the joint
     refinement of motion and normal (:mod:`monovo_cli.core.plane_fit`), with the information
     of its normal equations; no information on the distance (with d and the translation
@@ -45,6 +49,7 @@ from monovo_cli.geometry.plane import Plane
 SIGMA_DISTANCE_FRACTION = 1.0 / 30.0  # default ground.sigma_distance: this x the distance
 SIGMA_DEG = 3.0  # default ground.sigma_deg
 DISTANCE_CHANGE = 0.02  # process noise of the carried distance per keyframe: this x the distance
+TILT_CHANGE_DEG = 0.5  # process noise of each carried tilt angle per keyframe (deg)
 
 
 def tangent_basis(n: np.ndarray) -> np.ndarray:
@@ -188,17 +193,18 @@ def propagate(plane: Plane, covariance: np.ndarray, cur_from_key: np.ndarray,
 
 def keyframe_plane(key_plane: Plane, key_covariance: np.ndarray, cur_from_key: np.ndarray,
                    motion_covariance: np.ndarray, *, measured: PlaneBelief | None = None,
-                   prior: PlaneBelief | None = None,
-                   distance_change: float = 0.0) -> PlaneBelief:
+                   prior: PlaneBelief | None = None, distance_change: float = 0.0,
+                   tilt_change: float = 0.0) -> PlaneBelief:
     """The plane of a new keyframe (in its camera): the MAP of (a) the keyframe's plane carried
-    by ``cur_from_key``, with ``distance_change`` (m, a std) of process noise added to its
-    distance, (b) ``measured`` and (c) ``prior`` (module docstring)."""
+    by ``cur_from_key``, with process noise of std ``distance_change`` (m) added to its
+    distance and ``tilt_change`` (rad) to each tilt, (b) ``measured`` and (c) ``prior``
+    (module docstring)."""
     if not np.all(np.isfinite(motion_covariance)):
         motion_covariance = np.zeros((6, 6))
     carried = propagate(key_plane, key_covariance, cur_from_key, motion_covariance)
-    if distance_change > 0:
-        P = carried.covariance
-        P[0, 0] += distance_change ** 2
+    if distance_change > 0 or tilt_change > 0:
+        P = carried.covariance + np.diag([distance_change ** 2, tilt_change ** 2,
+                                          tilt_change ** 2])
         carried = PlaneBelief(carried.plane, np.linalg.inv(P))
     return fuse([carried] + [b for b in (measured, prior) if b is not None])
 

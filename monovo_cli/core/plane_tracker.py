@@ -23,6 +23,7 @@ from monovo_cli.core.plane_belief import (
     CONSISTENT_CHI2,
     DISTANCE_CHANGE,
     PLANE_SETTLED_DEG,
+    TILT_CHANGE_DEG,
     PlaneBelief,
     default_sigmas,
     exact_covariance,
@@ -102,7 +103,8 @@ class PlaneTracker:
         """The plane of a keyframe anchored on the current frame (finest level ``image``,
         ``cur_from_key`` its pose): ``(plane in its camera, covariance, gain, bias)``, the MAP
         of the plane carried by the motion, the joint refinement's normal and the mounting
-        prior (with DISTANCE_CHANGE of process noise on the carried distance); the brightness
+        prior (with DISTANCE_CHANGE and TILT_CHANGE_DEG of process noise on the carried
+        plane); the brightness
         model is the refinement's. If the beliefs cannot be combined
         the carried plane comes back with covariance None."""
         fit = refine_plane_and_motion(key.levels[0].points, image, cur_from_key, key.plane,
@@ -112,7 +114,8 @@ class PlaneTracker:
         try:
             belief = keyframe_plane(key.plane, self.covariance, cur_from_key, est.covariance,
                                     measured=measured, prior=self.mounting,
-                                    distance_change=DISTANCE_CHANGE * key.plane.distance)
+                                    distance_change=DISTANCE_CHANGE * key.plane.distance,
+                                    tilt_change=np.radians(TILT_CHANGE_DEG))
         except (ValueError, np.linalg.LinAlgError):
             return key.plane.in_frame(cur_from_key), None, fit.gain, fit.bias
         return belief.plane, belief.covariance, fit.gain, fit.bias
