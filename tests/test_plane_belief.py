@@ -150,6 +150,27 @@ def test_keyframe_plane_adds_the_distance_process_noise():
     assert f.plane.distance == pytest.approx(1.5 - 0.1 * 0.0034 / 0.0059)
 
 
+def test_keyframe_plane_adds_the_tilt_process_noise():
+    # a carried plane known to 0.1 deg, 2 deg of pitch away from the prior (3 deg): without
+    # process noise it barely moves; with 1 deg of it the carried tilt variance is
+    # 0.1^2 + 1^2 = 1.01 deg^2 against the prior's 9, so the tilt moves 1.01 / 10.01 of the
+    # way (gnomonic chart: tan of the angles) and the variance is 1 / (1/1.01 + 1/9) deg^2
+    prior = mounting_prior(Plane(N0, 1.5), 1e3, 3.0)
+    plane = tilted(Plane(N0, 1.5), math.radians(2.0))
+    carried = np.diag([1e-6, math.radians(0.1) ** 2, math.radians(0.1) ** 2])
+    stiff = keyframe_plane(plane, carried, np.eye(4), np.zeros((6, 6)), prior=prior)
+    loose = keyframe_plane(plane, carried, np.eye(4), np.zeros((6, 6)), prior=prior,
+                           tilt_change=math.radians(1.0))
+
+    def pitch_deg(p: Plane) -> float:
+        return math.degrees(math.atan(to_chart(Plane(N0, 1.5), p)[1]))
+
+    assert pitch_deg(stiff.plane) == pytest.approx(2.0 - 2.0 * 0.01 / 9.01, abs=2e-3)
+    assert pitch_deg(loose.plane) == pytest.approx(2.0 - 2.0 * 1.01 / 10.01, abs=2e-2)
+    assert tilt_std_deg(loose.covariance) == pytest.approx(
+        math.sqrt(1.0 / (1.0 / 1.01 + 1.0 / 9.0)), rel=1e-2)
+
+
 def test_transported_keeps_a_missing_distance_missing():
     plane = Plane(N0, 1.5)
     info = np.zeros((3, 3))
