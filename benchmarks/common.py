@@ -62,7 +62,7 @@ def final_drift(est_world_from_cam: np.ndarray, gt_world_from_cam: np.ndarray) -
 
 
 def std_columns(path: Path) -> np.ndarray:
-    """The std_tx..std_rz columns of a motion.csv (N, 6) (m, rad); NaN where empty (lost)."""
+    """The std_tx..std_rz columns of a motion.csv (N, 6) (m, deg); NaN where empty (lost)."""
     import csv
 
     with open(path, newline="") as f:

@@ -63,9 +63,8 @@ def std_honesty(errors: np.ndarray, std: np.ndarray) -> np.ndarray:
     """Per axis (6,): std of error / reported std over the motions with a finite std.
 
     ``errors`` (n, 6) as ``benchmarks.common.motion_errors`` gives them (m, deg); ``std``
-    (n, 6) from motion.csv (m, rad)."""
+    (n, 6) from motion.csv, in the same units (m, deg: docs/guide.md)."""
     e = np.array(errors, dtype=float)
-    e[:, 3:] = np.radians(e[:, 3:])
     ok = np.all(np.isfinite(std), axis=1) & np.all(std > 0, axis=1)
     return np.std(e[ok] / std[ok], axis=0)
 
