@@ -63,7 +63,7 @@ def main() -> None:
             plane_tracker.TILT_CHANGE_DEG = tilt
             cells = []
             for seq in seqs:
-                r = monovo_on_drive(seq, Path(tmp) / seq.name)
+                r = monovo_on_drive(seq, Path(tmp) / seq.name, overwrite=True)
                 err, dist, heading = r.drift
                 cells.append(f"{100 * err / dist:.2f} % / {heading:.2f}°")
             mark = " (default)" if tilt == default else ""
