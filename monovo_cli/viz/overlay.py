@@ -19,7 +19,8 @@ Over a long drive the first triangle leaves the view; the renderer then places a
 ``reanchored`` or ``reinit``), and whenever less than ``MIN_VISIBLE`` of the current one is
 in view, at the same image position as the first (the default triangle or ``--triangle``)
 lifted onto the ground with that frame's pose. Each triangle is then glued to its patch of
-ground until the next one, so every frame can be checked.
+ground until the next one, so every frame can be checked. (Over a height map instead of the
+plane: :mod:`monovo_cli.viz.drape`.)
 
 Optional observation points (``points=True``) are the ground model's points of the frame
 the overlay anchors on (frame 0, then every re-anchored frame) projected with the pose and
@@ -343,9 +344,7 @@ class OverlayRenderer:
         if world_from_cam is not None:
             if self.points:
                 self._draw_points(out, index, image, world_from_cam, status)
-            st = self.style
-            draw_polygon(out, self.triangle_outline(world_from_cam), fill=st.fill,
-                         outline=st.outline, alpha=st.alpha, thickness=self.thickness)
+            self._draw_triangle(out, world_from_cam)
         if self.size != (out.shape[1], out.shape[0]):
             out = cv2.resize(out, self.size, interpolation=cv2.INTER_AREA)
         text = f"frame {index}" + (f"/{last}" if last is not None else "")
@@ -360,6 +359,12 @@ class OverlayRenderer:
             self._new_triangle = False
         draw_text(out, text, self.style.text)
         return out
+
+    def _draw_triangle(self, out: np.ndarray, world_from_cam: np.ndarray) -> None:
+        """The triangle into ``out`` (H, W, 3) BGR uint8, full size, in place."""
+        st = self.style
+        draw_polygon(out, self.triangle_outline(world_from_cam), fill=st.fill,
+                     outline=st.outline, alpha=st.alpha, thickness=self.thickness)
 
     def _draw_points(self, out: np.ndarray, index: int, image: np.ndarray,
                      world_from_cam: np.ndarray, status: str | None) -> None:
