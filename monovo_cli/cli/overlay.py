@@ -41,10 +41,15 @@ from monovo_cli.cli.options import (
                                            "every"),
               help="Write every N-th frame only (0, N, 2N, ...); --fps stays the rate of the "
                    "frames written.")
+@click.option("--terrain", type=click.Path(path_type=Path), default=None,
+              metavar="DIR|heightmap.csv",
+              help="Drape the triangle over this height map (heightmap.csv of 'monovo track "
+                   "--terrain-out', or its output directory); on the plane where it has no "
+                   "data.")
 @overwrite_option("Replace the output if it exists.")
 @common
 def overlay(verbosity, seq, params, topic, trajectory, out, triangle, points, fps, scale, every,
-            overwrite):
+            terrain, overwrite):
     """Render the glued triangle: a triangle on the ground moved with the estimated poses.
 
     \b
@@ -54,12 +59,14 @@ def overlay(verbosity, seq, params, topic, trajectory, out, triangle, points, fp
       monovo track demo -o out
       monovo overlay demo -t out/trajectory.csv -o out/overlay.mp4
       monovo overlay demo -t out/trajectory.csv -o out/overlay.gif --scale 0.5 --every 2
+      monovo track hills -o out --terrain-out
+      monovo overlay hills -t out/trajectory.csv -o out/overlay.mp4 --terrain out
     """
     from monovo_cli.pipeline.overlay import overlay_sequence
 
     with progress_bar(verbosity.quiet, "frame") as bar:
         s = overlay_sequence(seq, params, trajectory, out, triangle_px=triangle, points=points,
-                             overwrite=overwrite, topic=topic, progress=bar,
+                             overwrite=overwrite, topic=topic, terrain=terrain, progress=bar,
                              **given(fps=fps, scale=scale, every=every))
     if not verbosity.quiet:
         click.echo(f"wrote {s.frames} frames to {s.out} in {s.seconds:.1f} s "

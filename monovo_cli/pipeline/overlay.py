@@ -8,12 +8,18 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from monovo_cli.errors import InputError
 from monovo_cli.io.frames import FrameSequence
 from monovo_cli.pipeline.track import open_sequence
+
+if TYPE_CHECKING:
+    from monovo_cli.geometry.camera import PinholeCamera
+    from monovo_cli.geometry.plane import Plane
+    from monovo_cli.viz.overlay import OverlayRenderer
 
 log = logging.getLogger(__name__)
 
@@ -51,10 +57,32 @@ def _trajectory_by_frame(path: Path, frames: FrameSequence) -> dict[int, np.ndar
     return {int(k): T for k, T in zip(idx, poses)}
 
 
+def _draped_renderer(terrain: Path, camera: PinholeCamera, plane: Plane, tri: np.ndarray,
+                     kwargs: dict) -> OverlayRenderer:
+    """The renderer draping the triangles over the height map ``terrain``; logs how much of
+    the first triangle the map covers."""
+    from monovo_cli.io.terrain import read_heightmap
+    from monovo_cli.viz.drape import DrapedOverlayRenderer
+
+    grid, ground_from_world = read_heightmap(terrain)
+    renderer = DrapedOverlayRenderer(camera, plane, tri, grid=grid,
+                                     ground_from_world=ground_from_world, seen_from=np.eye(4),
+                                     **kwargs)
+    share = float(np.mean(renderer.mesh()[1]))
+    if share == 0.0:
+        log.warning("%s: the height map covers none of the first triangle; it is drawn on the "
+                    "plane until a triangle falls on the mapped strip", terrain)
+    else:
+        log.info("%s: %.0f %% of the first triangle on the height map (%d x %d cells of %g m)",
+                 terrain, 100.0 * share, grid.height.shape[1], grid.height.shape[0], grid.cell)
+    return renderer
+
+
 def overlay_sequence(seq: Path, params: Path | None, trajectory: Path, out: str | Path, *,
                      triangle_px: np.ndarray | None = None, points: bool = False,
                      fps: float = 10.0, scale: float = 1.0, every: int = 1,
                      overwrite: bool = False, topic: str | None = None,
+                     terrain: Path | None = None,
                      progress: Callable[[int, int], None] | None = None) -> OverlaySummary:
     """``monovo overlay``: render the glued triangle into every frame of ``seq``.
 
@@ -66,6 +94,9 @@ def overlay_sequence(seq: Path, params: Path | None, trajectory: Path, out: str 
     2 ``every``, ... up to the last posed frame are written to ``out`` (.mp4, .gif or a
     directory of PNGs, :mod:`monovo_cli.io.video`), resized by ``scale`` (0 < scale <= 1);
     frames without a pose show no triangle. ``topic`` the image topic of a ROS bag.
+    ``terrain``: a ``heightmap.csv`` of ``monovo track --terrain-out`` (or the directory
+    holding it): each triangle is then draped over that height map, on the plane where the
+    map has no data (:mod:`monovo_cli.viz.drape`).
     """
     from monovo_cli.io.formats import read_motion_stats
     from monovo_cli.io.video import open_sink
@@ -84,8 +115,11 @@ def overlay_sequence(seq: Path, params: Path | None, trajectory: Path, out: str 
     plane, region = cfg.plane, cfg.region
     tri = triangle_on_ground(cfg.camera, plane, triangle_px, region)
     pixels = default_triangle_pixels(region) if triangle_px is None else triangle_px
-    renderer = OverlayRenderer(cfg.camera, plane, tri, region=region, points=points,
-                               pixels=pixels, scale=scale)
+    kwargs = dict(region=region, points=points, pixels=pixels, scale=scale)
+    if terrain is None:
+        renderer = OverlayRenderer(cfg.camera, plane, tri, **kwargs)
+    else:
+        renderer = _draped_renderer(Path(terrain), cfg.camera, plane, tri, kwargs)
     last = max(poses)
     if len(poses) < len(frames):  # e.g. an interrupted run: rendered, but said
         log.warning("%s: poses for %d of the %d frames of %s; frames without one show no "
