@@ -151,7 +151,10 @@ class Estimate:
     ``key_from_cur_true = exp(xi^) key_from_cur``; ``msd`` the final mean squared intensity
     difference at the finest level's valid points (grey levels^2, after the brightness
     model); ``gain``/``bias`` the brightness model; ``condition`` the condition number of the
-    scale-normalised normal matrix.
+    scale-normalised normal matrix. ``weights`` (N,) float32 are the finest level's final
+    robust weights (0 at invalid points) and ``normal`` the (P, P) normal matrix ``J^T W J``
+    behind ``covariance`` (P = 8 with the brightness model, else 6), for propagating other
+    errors through the estimate (:mod:`monovo_cli.core.motion_covariance`).
     """
 
     cur_from_key: np.ndarray
@@ -167,6 +170,8 @@ class Estimate:
     residuals: np.ndarray | None = None
     valid: np.ndarray | None = None
     finest_iterations: int = 0
+    weights: np.ndarray | None = None
+    normal: np.ndarray | None = None
 
 
 def residuals(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float = 1.0,
@@ -359,6 +364,7 @@ def estimate_motion(levels: Sequence[KeyLevel], pyramid: Sequence[np.ndarray],
     msd = _msd(r, nv)
     cov = np.full((6, 6), np.inf)
     cond = float("inf")
+    w = H = None
     if nv >= max(opts.min_valid_points, npar):
         w = robust_weights(r, opts.robust, huber_k=opts.huber_k, tukey_c=opts.tukey_c,
                            scale=mad_scale(r, valid))[0]
@@ -381,4 +387,4 @@ def estimate_motion(levels: Sequence[KeyLevel], pyramid: Sequence[np.ndarray],
             pass
     converged = bool(nv >= opts.min_valid_points and np.all(np.isfinite(T)))
     return Estimate(T, cov, msd, total, nv, nv / max(len(valid), 1), converged, cond,
-                    float(gain), float(bias), res.r, valid, res.iterations)
+                    float(gain), float(bias), res.r, valid, res.iterations, w, H)

@@ -33,13 +33,14 @@ from monovo_cli.core.estimate import (
 )
 from monovo_cli.core.features import CHEAP, feature_motion
 from monovo_cli.core.keyframe import Keyframe, build_keyframe, footprint
+from monovo_cli.core.motion_covariance import MotionCovariance
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane_tracker import PlaneTracker
 from monovo_cli.core.robust import inlier_fraction
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
-from monovo_cli.geometry.lie import adjoint, orthonormalize, output_covariance, se3_inv, so3_log
+from monovo_cli.geometry.lie import orthonormalize, se3_inv, so3_log
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.image.gradients import difference_sigma, estimate_noise_sigma
 from monovo_cli.image.pyramid import build_pyramid
@@ -101,7 +102,7 @@ class Odometry:
         self._key: Keyframe | None = first_keyframe
         self._world_from_prev = np.eye(4)
         self._cur_from_key_prev = np.eye(4)
-        self._cov_prev = np.zeros((6, 6))      # of key_from_prev's left twist
+        self._motion_cov = MotionCovariance()  # the reported covariance's previous frame
         self._velocity = np.eye(4)  # cur_from_prev of the last accepted frame (none: standing)
         self._state = OdometryState.STARTING
         self._gain, self._bias = 1.0, 0.0
@@ -216,12 +217,13 @@ class Odometry:
                 key, pyr[0], est, cur_from_key, gain, bias, self.options.estimator)
         world_from_cur = orthonormalize(key.world_from_key @ se3_inv(cur_from_key))
         prev_from_cur = orthonormalize(se3_inv(self._world_from_prev) @ world_from_cur)
-        cov = self._relative_covariance(est.covariance, prev_from_cur)
+        cov = self._motion_cov.relative(est, key.levels[0], key.plane,
+                                        self._plane.reported_covariance,
+                                        self._cur_from_key_prev, prev_from_cur)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         self._velocity = se3_inv(prev_from_cur)
         self._world_from_prev = world_from_cur
         self._cur_from_key_prev = cur_from_key
-        self._cov_prev = est.covariance
         self._gain, self._bias = gain, bias
         self._recent_msd.append(est.msd)
         self._lost_run = 0
@@ -306,17 +308,6 @@ class Odometry:
         return (degraded or est.valid_fraction < self.options.reanchor_fraction
                 or footprint(self.camera, corners_cur) < self.options.min_footprint)
 
-    def _relative_covariance(self, cov_cur: np.ndarray, prev_from_cur: np.ndarray) -> np.ndarray:
-        """Covariance of T_{k-1}_k's (t, rotvec) from the keyframe-relative ones.
-
-        With both frames tracked against the keyframe, prev_from_cur = key_from_prev^-1
-        key_from_cur, whose left twist is Ad(prev_from_key) (xi_cur - xi_prev); the two
-        estimates' errors are taken as independent.
-        """
-        A = adjoint(self._cur_from_key_prev)  # Ad(prev_from_key)
-        cov = output_covariance(A @ (cov_cur + self._cov_prev) @ A.T, prev_from_cur)
-        return 0.5 * (cov + cov.T)
-
     def _settle_plane(self, pyr: list[np.ndarray], est: Estimate) -> Estimate:
         """PlaneTracker.test; a corrected plane's keyframe is kept if its estimate passes."""
         found = self._plane.test(self._key, self._key_image, pyr, est, self.camera,
@@ -337,7 +328,7 @@ class Odometry:
             return False
         self._plane.anchored(cov)
         self._cur_from_key_prev = np.eye(4)
-        self._cov_prev = np.zeros((6, 6))
+        self._motion_cov.anchored()
         self._gain, self._bias = 1.0, 0.0
         self._state = OdometryState.TRACKING
         self._key_image, self._key_msd = image, None

@@ -17,6 +17,7 @@ import numpy as np
 
 from monovo_cli.core.estimate import Estimate, EstimatorOptions, estimate_motion
 from monovo_cli.core.keyframe import Keyframe, build_keyframe
+from monovo_cli.core.motion_covariance import PlaneConsistency
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane_belief import (
     CONFIRMED_DEG,
@@ -47,13 +48,20 @@ class PlaneTracker:
 
     ``mounting``: the mounting prior (``plane`` of init.yaml, ``sigma_distance`` m and
     ``sigma_deg``; None: :func:`~monovo_cli.core.plane_belief.default_sigmas`);
-    ``covariance`` (3, 3): of the current keyframe plane's distance and tilts, in its chart.
+    ``covariance`` (3, 3): of the current keyframe plane's distance and tilts, in its chart;
+    ``consistency`` calibrates it for the reported motion covariance (:attr:`reported_covariance`).
     """
 
     def __init__(self, plane: Plane, sigma_distance: float | None = None,
                  sigma_deg: float | None = None) -> None:
         self.mounting = mounting_prior(plane, *default_sigmas(plane, sigma_distance, sigma_deg))
         self.covariance = self.mounting.covariance
+        self.consistency = PlaneConsistency()
+
+    @property
+    def reported_covariance(self) -> np.ndarray:
+        """(3, 3) :attr:`covariance` as the re-anchors so far say it is (for reporting only)."""
+        return self.consistency.reported(self.covariance)
 
     @property
     def unsettled(self) -> bool:
@@ -111,11 +119,14 @@ class PlaneTracker:
                                       gain=gain, bias=bias, options=options, iterations=4)
         measured = None if fit.measured is None else \
             transported(fit.measured, orthonormalize(fit.cur_from_key))
+        distance_change = DISTANCE_CHANGE * key.plane.distance
         try:
             belief = keyframe_plane(key.plane, self.covariance, cur_from_key, est.covariance,
                                     measured=measured, prior=self.mounting,
-                                    distance_change=DISTANCE_CHANGE * key.plane.distance,
+                                    distance_change=distance_change,
                                     tilt_change=np.radians(TILT_CHANGE_DEG))
         except (ValueError, np.linalg.LinAlgError):
             return key.plane.in_frame(cur_from_key), None, fit.gain, fit.bias
+        self.consistency.reanchored(key.plane, self.covariance, cur_from_key, est.covariance,
+                                    belief, self.mounting, distance_change)
         return belief.plane, belief.covariance, fit.gain, fit.bias
