@@ -26,12 +26,8 @@ from enum import Enum
 
 import numpy as np
 
-from monovo_cli.core.estimate import (
-    Estimate,
-    coarse_search,
-    estimate_motion,
-)
-from monovo_cli.core.features import CHEAP, feature_motion
+from monovo_cli.core.bridge import Bridging
+from monovo_cli.core.estimate import Estimate, coarse_search, estimate_motion
 from monovo_cli.core.keyframe import Keyframe, build_keyframe, footprint
 from monovo_cli.core.motion_covariance import MotionCovariance
 from monovo_cli.core.options import TrackOptions
@@ -110,7 +106,8 @@ class Odometry:
         self._sigma = 1.0  # noise sigma of the current frame's differences (difference_sigma)
         self._chance_msd = np.inf  # msd of unrelated images (see step)
         self._prev_image: np.ndarray | None = None
-        self._key_image: np.ndarray | None = None  # the keyframe's image (feature hypothesis)
+        self._key_image: np.ndarray | None = None  # the keyframe's image (plane test)
+        self._bridging = Bridging(camera, mask=mask, region=region)  # the feature hypothesis
         self._key_msd: float | None = None  # msd of the first frame fitted to the keyframe
         self._lost_run = 0  # frames lost in a row
 
@@ -128,6 +125,7 @@ class Odometry:
             self._key = build_keyframe(index, image, self.camera, self._plane0, self.region,
                                        np.eye(4), self.options, mask=self.mask)
         self._prev_image = self._key_image = image
+        self._bridging.anchored(image)
         n = len(self._key.levels[0].points)
         return FrameResult(index, timestamp, np.eye(4), np.eye(4), 0.0, 0, n, FrameStatus.OK,
                            np.zeros(6), np.zeros((6, 6)), keyframe=self._key.index)
@@ -164,7 +162,7 @@ class Odometry:
         else:  # standing start, or recovering: no prediction to trust
             guess = self._cur_from_key_prev
         if est is None or reason:
-            est, reason = self._capture(key, image, pyr, guess, est, reason)
+            est, reason = self._capture(index, key, image, pyr, guess, est, reason)
         if not reason:
             reason = self._step_too_large(orthonormalize(est.cur_from_key))
         if reason:
@@ -173,18 +171,16 @@ class Odometry:
             return self._lost(index, timestamp, reason, est)
         return self._accept(index, timestamp, image, pyr, est)
 
-    def _capture(self, key: Keyframe, image: np.ndarray, pyr: list[np.ndarray],
+    def _capture(self, index: int, key: Keyframe, image: np.ndarray, pyr: list[np.ndarray],
                  guess: np.ndarray, est: Estimate | None, reason: str) -> tuple[Estimate, str]:
         """The capture range beyond the prediction: the rotation search around ``guess`` and
         the feature hypothesis each start the estimator from the top level; the estimate
         that passes the checks with the most inliers is kept (``est``, failing with
         ``reason``, competes too)."""
         starts = [self._search(key, pyr, guess)]
-        if self.options.feature_hypothesis and self._key_image is not None:
-            hyp = feature_motion(self._key_image, image, self.camera, key.plane, mask=self.mask,
-                                 region=self.region, options=CHEAP)
-            if hyp is not None:
-                starts.append(hyp.cur_from_key)
+        if self.options.feature_hypothesis:
+            hyp = self._bridging.hypothesis(index, image, key.plane)
+            starts += [] if hyp is None else [hyp]
         for start in starts:
             cand = estimate_motion(key.levels, pyr, start, options=self.options.estimator,
                                    gain=self._gain, bias=self._bias)
@@ -239,7 +235,9 @@ class Odometry:
 
     def _lost(self, index: int, timestamp: float, reason: str,
               est: Estimate | None = None) -> FrameResult:
-        cur_from_key = orthonormalize(self._velocity @ self._cur_from_key_prev)
+        """The prediction, or the feature hypothesis where it contradicts it (core.bridge)."""
+        cur_from_key = self._bridging.lost_pose(
+            index, orthonormalize(self._velocity @ self._cur_from_key_prev))
         world_from_cur = orthonormalize(self._key.world_from_key @ se3_inv(cur_from_key))
         prev_from_cur = orthonormalize(se3_inv(self._world_from_prev) @ world_from_cur)
         self._world_from_prev = world_from_cur
@@ -332,6 +330,7 @@ class Odometry:
         self._gain, self._bias = 1.0, 0.0
         self._state = OdometryState.TRACKING
         self._key_image, self._key_msd = image, None
+        self._bridging.anchored(image)
         return True
 
     @staticmethod
@@ -355,6 +354,7 @@ class Odometry:
         for plane in (self._key.plane.in_frame(cur_from_key), self._plane0):
             if self._reanchor(index, image, pyr, res.world_from_cam, plane):
                 self._lost_run = 0
+                self._recent_msd.clear()  # a fresh start: no msd history yet
                 return replace(res, status=FrameStatus.REINIT, keyframe=self._key.index,
                                reason=f"re-initialised after {lost_for} lost frames ({reason})")
         return res
