@@ -307,13 +307,20 @@ class Odometry:
                 or footprint(self.camera, corners_cur) < self.options.min_footprint)
 
     def _settle_plane(self, pyr: list[np.ndarray], est: Estimate) -> Estimate:
-        """PlaneTracker.test; a corrected plane's keyframe is kept if its estimate passes."""
+        """PlaneTracker.test; a corrected plane's keyframe is kept if its estimate passes, from
+        the top level if level 2's fails (``est``, fitted over the old plane, can be far off)."""
         found = self._plane.test(self._key, self._key_image, pyr, est, self.camera,
                                  self.region, self.options, self.mask)
-        if found is None or self._failure(found[1], found[0]):
+        if found is None:
             return est
-        self._key, est, self._plane.covariance = found
-        return est
+        key, new, cov = found
+        if self._failure(new, key):
+            new = estimate_motion(key.levels, pyr, est.cur_from_key, options=self.options.estimator,
+                                  gain=est.gain, bias=est.bias)
+            if self._failure(new, key):
+                return est
+        self._key, self._plane.covariance = key, cov
+        return new
 
     def _reanchor(self, index: int, image: np.ndarray, pyr: list[np.ndarray],
                   world_from_cur: np.ndarray, plane: Plane, cov: np.ndarray | None = None) -> bool:
