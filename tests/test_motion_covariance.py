@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from plane_helpers import N0, tilted
 
 from monovo_cli.core.estimate import estimate_motion
 from monovo_cli.core.keyframe import build_keyframe
@@ -20,7 +21,6 @@ from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane_belief import (
     PlaneBelief,
     mounting_prior,
-    tangent_basis,
     to_chart,
 )
 from monovo_cli.geometry.lie import adjoint, make_pose, se3_inv, se3_log, so3_exp
@@ -35,16 +35,6 @@ from monovo_cli.synth.render import (
     ground_region,
 )
 from monovo_cli.synth.texture import GroundTexture, procedural_texture
-
-N0 = np.array([0.0, math.cos(math.radians(40)), math.sin(math.radians(40))])
-
-
-def tilted(plane: Plane, t1: float, t2: float = 0.0, dd: float = 0.0) -> Plane:
-    """``plane`` turned by angles t1, t2 (rad) along its tangent basis, distance + dd."""
-    E = tangent_basis(plane.normal)
-    axis = np.cross(plane.normal, E[:, 0]) * t1 + np.cross(plane.normal, E[:, 1]) * t2
-    n = so3_exp(axis) @ plane.normal if np.any(axis) else plane.normal
-    return Plane(n, plane.distance + dd)
 
 
 @pytest.fixture(scope="module")

@@ -5,6 +5,7 @@ import math
 import numpy as np
 import pytest
 import yaml
+from plane_helpers import N0, tilted
 
 from monovo_cli.core.odometry import Odometry, track
 from monovo_cli.core.plane_belief import (
@@ -16,7 +17,6 @@ from monovo_cli.core.plane_belief import (
     keyframe_plane,
     mounting_prior,
     propagate,
-    tangent_basis,
     tilt_std_deg,
     to_chart,
     transported,
@@ -34,16 +34,6 @@ from monovo_cli.synth.render import (
     ground_region,
 )
 from monovo_cli.synth.texture import GroundTexture, procedural_texture
-
-N0 = np.array([0.0, math.cos(math.radians(40)), math.sin(math.radians(40))])
-
-
-def tilted(plane: Plane, t1: float, t2: float = 0.0, dd: float = 0.0) -> Plane:
-    """``plane`` turned by angles t1, t2 (rad) along its tangent basis, distance + dd."""
-    E = tangent_basis(plane.normal)
-    axis = np.cross(plane.normal, E[:, 0]) * t1 + np.cross(plane.normal, E[:, 1]) * t2
-    n = so3_exp(axis) @ plane.normal if np.any(axis) else plane.normal
-    return Plane(n, plane.distance + dd)
 
 
 def test_chart_round_trip_and_jacobian():
