@@ -389,30 +389,27 @@ def section_track(seqs: list[RealSequence] | None, args) -> None:
     print("### `monovo track` end to end (default options)\n")
     head = ("| sequence | frames | path (m) | final position error (m) | % of path | final heading "
             "error (deg) | lost frames | longest lost run | frames/s wall (CPU) |")
-    rows = []
+    rows, reasons = [], []
     with tempfile.TemporaryDirectory() as tmp:
         for seq in seqs:
             rows.append(track_run(seq, Path(tmp) / seq.name))
+            reasons.append(loss_reasons(seq.name, Path(tmp) / seq.name / "motion.csv"))
     print(table(head, rows) + "\n")
-    print(f"Why frames are lost: the tracker's reasons over the first {REASON_FRAMES} frames "
-          "(`core.odometry.track`, same options; motion.csv does not carry them).\n")
-    print(table("| sequence | lost | reasons (frames) |", [loss_reasons(seq) for seq in seqs]) + "\n")
+    print("Why frames are lost or re-initialised: the `reason` column of the same runs' motion.csv.\n")
+    print(table("| sequence | lost / re-init | reasons (frames) |", reasons) + "\n")
 
 
-REASON_FRAMES = 50
-
-
-def loss_reasons(seq: RealSequence, frames: int = REASON_FRAMES) -> list[str]:
+def loss_reasons(name: str, motion_csv: Path) -> list[str]:
+    """One table row: the lost and re-initialised frames of a motion.csv and their reasons."""
+    import csv
     from collections import Counter
 
-    from monovo_cli.core.odometry import TrackOptions, track
-
-    n = min(frames, len(seq.frames))
-    images = ((k, float(k), seq.image(k).astype(np.float32)) for k in range(n))
-    reasons = Counter(r.reason for r in track(images, seq.camera, seq.plane0, seq.region,
-                                              TrackOptions()) if r.index and r.status == "lost")
+    with open(motion_csv, newline="") as f:
+        rows = [r for r in csv.DictReader(f) if r["status"] in ("lost", "reinit")]
+    reasons = Counter(r["reason"] for r in rows)
     text = "; ".join(f"{why} ({count})" for why, count in reasons.most_common()) or "—"
-    return [seq.name, f"{sum(reasons.values())} of {n - 1}", text]
+    lost = sum(r["status"] == "lost" for r in rows)
+    return [name, f"{lost} / {len(rows) - lost}", text]
 
 
 SECTIONS = {"features": section_features, "cost": section_cost, "track": section_track,
