@@ -90,6 +90,8 @@ ECC_REFERENCE_FPS = 17.2
 def add_arguments(ap) -> None:
     """This module's options on ``benchmarks.real``'s parser."""
     ap.add_argument("--mer-frames", type=int, default=100, help="frames of the MER drive [100]")
+    ap.add_argument("--mer-seeds", type=int, nargs="*", default=[],
+                    help="more seeds of the MER drive, monovo only, after the main one [none]")
     ap.add_argument("--pairs", type=int, default=100, help="pairs per texture [100]")
     ap.add_argument("--speed-frames", type=int, default=200, help="frames of the 512² drive [200]")
     ap.add_argument("--renders", type=Path, default=RENDERS,
@@ -211,6 +213,29 @@ def section_mer(seqs, args) -> None:
          f"{pct:.2f} %", pct <= MER_MAX_PCT),
         ("0 lost frames", f"MER drive, {n} frames", f"{sum(lost)} lost, {reinit} re-init",
          sum(lost) == 0)]) + "\n")
+    if args.mer_seeds:
+        mer_other_seeds(args, n)
+
+
+def mer_other_seeds(args, n: int) -> None:
+    """The MER drive on other seeds (another terrain texture, bobbing and path), monovo only."""
+    print(f"Other seeds of the MER drive ({n} frames), monovo with default options:\n")
+    head = ("| seed | distance (m) | final position error (m) | % of distance | final heading "
+            "error (deg) | lost | re-inits | frames/s wall (CPU) |")
+    lines = [head, "|" + " --- |" * (head.count("|") - 1)]
+    with renders_root(args) as root, tempfile.TemporaryDirectory() as tmp:
+        for seed in args.mer_seeds:
+            seq = rendered(root, f"mer_{n}_{seed}_{NOISE_VAR:g}", lambda d, s=seed: synthesize(
+                d, preset="mer", frames=n, noise_var=NOISE_VAR, seed=s)) / "data"
+            mono = monovo_on_drive(seq, Path(tmp) / f"out{seed}", TrackOptions())
+            rows = motion_reasons(Path(tmp) / f"out{seed}" / "motion.csv")
+            err, dist, heading = mono.drift
+            lines.append(f"| {seed} | {dist:.2f} | {err:.3f} | {100 * err / dist:.2f} | "
+                         f"{heading:.2f} | {sum(st == 'lost' for st, _ in rows)} | "
+                         f"{sum(st == 'reinit' for st, _ in rows)} | "
+                         f"{mono.count / mono.seconds:.1f} ({mono.count / mono.cpu:.1f}) |")
+            print(lines[-1], flush=True)
+    print("\n" + "\n".join(lines) + "\n")
 
 
 # --------------------------------------------------------------------------- pairs
