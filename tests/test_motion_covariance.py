@@ -20,6 +20,7 @@ from monovo_cli.core.motion_covariance import (
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane_belief import (
     PlaneBelief,
+    carried_plane,
     mounting_prior,
     to_chart,
 )
@@ -134,7 +135,7 @@ def _reanchor(pc: PlaneConsistency, rng, nu_d_std: float, nu_t_std: float) -> No
     nu_t = rng.normal(0.0, nu_t_std, 2)
     new = PlaneBelief.from_covariance(tilted(key, -nu_t[0], -nu_t[1]), tiny)
     prior = mounting_prior(Plane(N0, 1.5 - rng.normal(0.0, nu_d_std)), 0.05, 3.0)
-    pc.reanchored(key, tiny, np.eye(4), np.zeros((6, 6)), new, prior, 0.03)
+    pc.reanchored(carried_plane(key, tiny, np.eye(4), np.zeros((6, 6))), new, prior, 0.03)
 
 
 def test_plane_consistency_calibrates_distance_and_tilt_by_hand():
@@ -163,7 +164,7 @@ def test_plane_consistency_ignores_innovations_its_beliefs_explain():
     for k in range(20):
         a = math.radians(0.3) * (-1) ** k
         new = PlaneBelief.from_covariance(tilted(key, a, -a), cov)
-        pc.reanchored(key, cov, np.eye(4), np.zeros((6, 6)), new,
+        pc.reanchored(carried_plane(key, cov, np.eye(4), np.zeros((6, 6))), new,
                       mounting_prior(key, 0.05, 3.0), 0.03)
     P = np.diag([1e-4, 1e-6, 1e-6])
     np.testing.assert_allclose(pc.reported(P)[1:, 1:], P[1:, 1:])

@@ -10,6 +10,7 @@ from plane_helpers import N0, tilted
 from monovo_cli.core.odometry import Odometry, track
 from monovo_cli.core.plane_belief import (
     PlaneBelief,
+    carried_plane,
     chart_jacobian,
     default_sigmas,
     from_chart,
@@ -123,7 +124,8 @@ def test_propagate_by_hand():
 def test_keyframe_plane_halves_the_prior_when_nothing_moved():
     plane = Plane(N0, 1.5)
     prior = mounting_prior(plane, 0.05, 3.0)
-    f = keyframe_plane(plane, prior.covariance, np.eye(4), np.zeros((6, 6)), prior=prior)
+    f = keyframe_plane(carried_plane(plane, prior.covariance, np.eye(4), np.zeros((6, 6))),
+                       prior=prior)
     assert np.allclose(f.covariance, prior.covariance / 2)
     assert f.plane == Plane(f.plane.normal, 1.5) and np.allclose(f.plane.normal, N0)
     assert tilt_std_deg(f.covariance) == pytest.approx(3.0 / math.sqrt(2))
@@ -134,7 +136,8 @@ def test_keyframe_plane_adds_the_distance_process_noise():
     # 1 / (1/0.0034 + 1/0.0025) = 0.00144; the mean moves 0.0034 / 0.0059 of the way to d0
     plane = Plane(N0, 1.5)
     prior = mounting_prior(Plane(N0, 1.4), 0.05, 3.0)
-    f = keyframe_plane(plane, prior.covariance, np.eye(4), np.zeros((6, 6)), prior=prior,
+    f = keyframe_plane(carried_plane(plane, prior.covariance, np.eye(4), np.zeros((6, 6))),
+                       prior=prior,
                        distance_change=0.03)
     assert f.covariance[0, 0] == pytest.approx(1.0 / (1.0 / 0.0034 + 1.0 / 0.0025))
     assert f.plane.distance == pytest.approx(1.5 - 0.1 * 0.0034 / 0.0059)
@@ -147,10 +150,10 @@ def test_keyframe_plane_adds_the_tilt_process_noise():
     # way (gnomonic chart: tan of the angles) and the variance is 1 / (1/1.01 + 1/9) deg^2
     prior = mounting_prior(Plane(N0, 1.5), 1e3, 3.0)
     plane = tilted(Plane(N0, 1.5), math.radians(2.0))
-    carried = np.diag([1e-6, math.radians(0.1) ** 2, math.radians(0.1) ** 2])
-    stiff = keyframe_plane(plane, carried, np.eye(4), np.zeros((6, 6)), prior=prior)
-    loose = keyframe_plane(plane, carried, np.eye(4), np.zeros((6, 6)), prior=prior,
-                           tilt_change=math.radians(1.0))
+    cov = np.diag([1e-6, math.radians(0.1) ** 2, math.radians(0.1) ** 2])
+    carried = carried_plane(plane, cov, np.eye(4), np.zeros((6, 6)))
+    stiff = keyframe_plane(carried, prior=prior)
+    loose = keyframe_plane(carried, prior=prior, tilt_change=math.radians(1.0))
 
     def pitch_deg(p: Plane) -> float:
         return math.degrees(math.atan(to_chart(Plane(N0, 1.5), p)[1]))

@@ -59,7 +59,7 @@ from collections import deque
 import numpy as np
 
 from monovo_cli.core.estimate import Estimate, KeyLevel
-from monovo_cli.core.plane_belief import PlaneBelief, propagate, tangent_basis, to_chart
+from monovo_cli.core.plane_belief import PlaneBelief, tangent_basis, to_chart
 from monovo_cli.geometry.lie import adjoint, output_covariance
 from monovo_cli.geometry.plane import Plane
 
@@ -158,17 +158,13 @@ class PlaneConsistency:
         self._tilt_excess: deque[np.ndarray] = deque(maxlen=CONSISTENCY_WINDOW)
         self._calibration: tuple[float, np.ndarray] | None = None  # (distance factor, Q)
 
-    def reanchored(self, key_plane: Plane, key_covariance: np.ndarray, cur_from_key: np.ndarray,
-                   motion_covariance: np.ndarray, new: PlaneBelief, prior: PlaneBelief,
+    def reanchored(self, carried: PlaneBelief, new: PlaneBelief, prior: PlaneBelief,
                    distance_change: float) -> None:
-        """One re-anchor: the old keyframe's plane ``key_plane`` (covariance ``key_covariance``
-        (3, 3)) is carried by ``cur_from_key`` (4x4; its twist's ``motion_covariance`` (6, 6))
-        to the new keyframe, whose plane is ``new`` (the MAP); ``prior`` the mounting prior,
-        ``distance_change`` (m) the distance's process noise."""
-        if not np.all(np.isfinite(motion_covariance)):
-            motion_covariance = np.zeros((6, 6))
+        """One re-anchor: the old keyframe's plane ``carried`` to the new keyframe
+        (:func:`~monovo_cli.core.plane_belief.carried_plane`, before process noise), whose
+        plane is ``new`` (the MAP); ``prior`` the mounting prior, ``distance_change`` (m) the
+        distance's process noise."""
         try:
-            carried = propagate(key_plane, key_covariance, cur_from_key, motion_covariance)
             Pc, Pn, Pp = carried.covariance, new.covariance, prior.covariance
         except np.linalg.LinAlgError:
             return

@@ -191,17 +191,22 @@ def propagate(plane: Plane, covariance: np.ndarray, cur_from_key: np.ndarray,
     return PlaneBelief(cur, np.linalg.inv(0.5 * (P + P.T)))
 
 
-def keyframe_plane(key_plane: Plane, key_covariance: np.ndarray, cur_from_key: np.ndarray,
-                   motion_covariance: np.ndarray, *, measured: PlaneBelief | None = None,
-                   prior: PlaneBelief | None = None, distance_change: float = 0.0,
-                   tilt_change: float = 0.0) -> PlaneBelief:
-    """The plane of a new keyframe (in its camera): the MAP of (a) the keyframe's plane carried
-    by ``cur_from_key``, with process noise of std ``distance_change`` (m) added to its
-    distance and ``tilt_change`` (rad) to each tilt, (b) ``measured`` and (c) ``prior``
-    (module docstring)."""
+def carried_plane(key_plane: Plane, key_covariance: np.ndarray, cur_from_key: np.ndarray,
+                  motion_covariance: np.ndarray) -> PlaneBelief:
+    """Belief (a) before its process noise: :func:`propagate`, a motion covariance that is not
+    finite (no estimate of it) taken as zero."""
     if not np.all(np.isfinite(motion_covariance)):
         motion_covariance = np.zeros((6, 6))
-    carried = propagate(key_plane, key_covariance, cur_from_key, motion_covariance)
+    return propagate(key_plane, key_covariance, cur_from_key, motion_covariance)
+
+
+def keyframe_plane(carried: PlaneBelief, *, measured: PlaneBelief | None = None,
+                   prior: PlaneBelief | None = None, distance_change: float = 0.0,
+                   tilt_change: float = 0.0) -> PlaneBelief:
+    """The plane of a new keyframe (in its camera): the MAP of (a) ``carried``
+    (:func:`carried_plane`) with process noise of std ``distance_change`` (m) added to its
+    distance and ``tilt_change`` (rad) to each tilt, (b) ``measured`` and (c) ``prior``
+    (module docstring)."""
     if distance_change > 0 or tilt_change > 0:
         P = carried.covariance + np.diag([distance_change ** 2, tilt_change ** 2,
                                           tilt_change ** 2])

@@ -26,6 +26,7 @@ from monovo_cli.core.plane_belief import (
     PLANE_SETTLED_DEG,
     TILT_CHANGE_DEG,
     PlaneBelief,
+    carried_plane,
     default_sigmas,
     exact_covariance,
     fuse,
@@ -121,12 +122,11 @@ class PlaneTracker:
             transported(fit.measured, orthonormalize(fit.cur_from_key))
         distance_change = DISTANCE_CHANGE * key.plane.distance
         try:
-            belief = keyframe_plane(key.plane, self.covariance, cur_from_key, est.covariance,
-                                    measured=measured, prior=self.mounting,
+            carried = carried_plane(key.plane, self.covariance, cur_from_key, est.covariance)
+            belief = keyframe_plane(carried, measured=measured, prior=self.mounting,
                                     distance_change=distance_change,
                                     tilt_change=np.radians(TILT_CHANGE_DEG))
         except (ValueError, np.linalg.LinAlgError):
             return key.plane.in_frame(cur_from_key), None, fit.gain, fit.bias
-        self.consistency.reanchored(key.plane, self.covariance, cur_from_key, est.covariance,
-                                    belief, self.mounting, distance_change)
+        self.consistency.reanchored(carried, belief, self.mounting, distance_change)
         return belief.plane, belief.covariance, fit.gain, fit.bias
