@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import argparse
 import tempfile
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -88,12 +89,15 @@ class RealSequence:
         """The ground plane in camera k (init.yaml's plane carried with the ground truth)."""
         return self.plane0.in_frame(se3_inv(self.gt_world_from_cam[k]))
 
-    def cur_from_prev(self, k: int) -> np.ndarray:
-        """Ground-truth ``T_k_{k-1}`` (4x4): camera k-1 points into camera k."""
-        return se3_inv(self.gt_world_from_cam[k]) @ self.gt_world_from_cam[k - 1]
-
     def image(self, k: int) -> np.ndarray:
         return cv2.imread(str(self.frames[k]), cv2.IMREAD_GRAYSCALE)
+
+    def pairs(self, step: int = 1) -> Iterator[tuple[np.ndarray, np.ndarray, Plane, np.ndarray]]:
+        """The frame pairs (k - step, k): both images, the plane in camera k - step and the
+        ground-truth ``T_k_{k-step}`` (4x4)."""
+        for k in range(step, len(self.frames), step):
+            yield (self.image(k - step), self.image(k), self.plane_in(k - step),
+                   se3_inv(self.gt_world_from_cam[k]) @ self.gt_world_from_cam[k - step])
 
 
 def load_sequence(directory: Path) -> RealSequence:
@@ -200,11 +204,7 @@ def feature_pairs(seq: RealSequence, label: str, options: FeatureOptions, *,
     full, cached = Stopwatch(), Stopwatch()
     level = options.level_for(seq.camera)
     roi = seq.region if region else None
-    ks = range(step, len(seq.frames), step)
-    for k in ks:
-        a, b = seq.image(k - step), seq.image(k)
-        plane = seq.plane_in(k - step)
-        gt = se3_inv(seq.gt_world_from_cam[k]) @ seq.gt_world_from_cam[k - step]
+    for a, b, plane, gt in seq.pairs(step):
         with full:
             key = detect(a, seq.camera, options=options,
                          mask=ground_mask(seq.camera, plane, level=level, region=roi,
@@ -221,7 +221,7 @@ def feature_pairs(seq: RealSequence, label: str, options: FeatureOptions, *,
         dt.append(e[0]), dr.append(e[1])
         px.append(corner_error_px(fm.cur_from_key, gt, seq.camera, plane, seq.region))
         rms.append((fm.rms_px, reprojection_rms_px(gt, fm, seq.camera, plane)))
-    n = len(ks)
+    n = len(dt)
     return PairStats(f"{seq.name}, {label}", np.array(dt), np.array(dr), np.array(px),
                      1000 * full.cpu / n, 1000 * cached.cpu / n, np.array(rms))
 
@@ -247,11 +247,7 @@ def peer_pairs(seq: RealSequence, step: int = 1) -> PairStats:
     peer, watch = OrbPeer(), Stopwatch()
     K = seq.camera.K
     dt, dr, px = [], [], []
-    ks = range(step, len(seq.frames), step)
-    for k in ks:
-        a, b = seq.image(k - step), seq.image(k)
-        plane = seq.plane_in(k - step)
-        gt = se3_inv(seq.gt_world_from_cam[k]) @ seq.gt_world_from_cam[k - step]
+    for a, b, plane, gt in seq.pairs(step):
         with watch:
             cv2.setRNGSeed(0)
             H = peer.homography(peer.prepare(a), peer.prepare(b))
@@ -264,7 +260,7 @@ def peer_pairs(seq: RealSequence, step: int = 1) -> PairStats:
         dt.append(e[0]), dr.append(e[1])
         px.append(corner_error_px(est, gt, seq.camera, plane, seq.region))
     return PairStats(f"{seq.name}, peers.OrbPeer (whole image, no lens model, decomposition)",
-                     np.array(dt), np.array(dr), np.array(px), 1000 * watch.cpu / len(ks), np.nan)
+                     np.array(dt), np.array(dr), np.array(px), 1000 * watch.cpu / len(dt), np.nan)
 
 
 def table(head: str, rows: list[list[str]]) -> str:
