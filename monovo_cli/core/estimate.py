@@ -40,6 +40,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -67,6 +68,7 @@ class EstimatorOptions:
     #                                  or "lanczos4" (image.sampling.INTERPOLATION)
 
 
+PLANAR_TOLERANCE = 1e-7  # |m . X - 1| of points lifted onto one plane (rounding only)
 REWEIGHT_PX = 0.5  # a step that moved the points further than this gets a fresh O^T W O
 @dataclass(frozen=True)
 class KeyLevel:
@@ -76,8 +78,9 @@ class KeyLevel:
     photometric columns (I_i, 1); ``probes`` (4, 3) are the extreme points, used to measure
     how far an update moves the image. ``grid`` holds the points' keyframe pixels as a remap
     grid (see ``pixel_grid``); ``plane_m`` (3,) is ``n / d`` of the plane they lie on
-    (``plane_m . X = 1``) and ``box_rays`` (4, 3) the rays K^-1 (u, v, 1) of the corners of
-    the points' bounding box in the keyframe image.
+    (``plane_m . X = 1``; a zero vector when they do not lie on one: points with depths of
+    their own, :mod:`monovo_cli.core.depth`) and ``box_rays`` (4, 3) the rays K^-1 (u, v, 1)
+    of the corners of the points' bounding box in the keyframe image.
     """
 
     points: LevelPoints
@@ -106,6 +109,8 @@ class KeyLevel:
             # The plane through the points (they were lifted onto one): X . m = 1.
             step = max(1, len(points) // 2000)
             m = np.linalg.lstsq(points.X[::step], np.ones(len(points.X[::step])), rcond=None)[0]
+            if np.max(np.abs(points.X @ m - 1.0)) > PLANAR_TOLERANCE:
+                m = np.zeros(3)  # not on one plane: no homography
         else:
             probes = box_rays = np.zeros((0, 3))
             m = np.zeros(3)
@@ -132,15 +137,32 @@ class KeyLevel:
         """
         cam = self.points.camera
         R, t = T[:3, :3], T[:3, 3]
-        if not cam.has_distortion and len(self.box_rays) and \
+        if not cam.has_distortion and len(self.box_rays) and self.plane_m.any() and \
                 float(np.min(self.box_rays @ (R[2] + t[2] * self.plane_m))) > 1e-9:
             K = cam.K
             H = K @ (R + np.outer(t, self.plane_m)) @ np.linalg.inv(K)
             return cv2.perspectiveTransform(self.grid, H)
+        if not cam.has_distortion and len(self.points) and \
+                float(np.min(self.points.X @ R[2])) + t[2] > 1e-9:
+            # points with depths of their own (not on one plane), all in front: moved and
+            # projected by OpenCV in one pass (a 4x4 map to (u w, v w, w, w))
+            M = np.zeros((4, 4))
+            M[:2] = cam.K[:2] @ T[:3]
+            M[2] = M[3] = T[2]
+            return cv2.perspectiveTransform(self.grid3, M)[..., :2]
         Xc = self.points.X @ R.T
         Xc += t
         u, v, _ = project_in_front(cam, Xc)
         return pixel_grid(u, v)
+
+    @cached_property
+    def grid3(self) -> np.ndarray:
+        """The points ``X`` packed as a (rows, GRID_COLUMNS, 3) float32 array (the layout of
+        ``grid``; the padding is zero)."""
+        rows, cols = self.grid.shape[:2]
+        out = np.zeros((rows * cols, 3), np.float32)
+        out[:len(self.points)] = self.points.X
+        return out.reshape(rows, cols, 3)
 
 
 @dataclass(frozen=True)

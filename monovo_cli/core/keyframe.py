@@ -16,6 +16,7 @@ import numpy as np
 from monovo_cli.core.estimate import KeyLevel
 from monovo_cli.core.ground import default_threshold, rectangle_corners, require_points, select_points
 from monovo_cli.core.options import TrackOptions
+from monovo_cli.core.relief import Relief
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.plane import Plane
@@ -34,6 +35,7 @@ class Keyframe:
     levels: tuple[KeyLevel, ...]
     noise_sigma: float
     threshold: float
+    relief: Relief | None = None  # the points' heights off the plane (None: on it)
 
 
 def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: Plane,

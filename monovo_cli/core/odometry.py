@@ -32,6 +32,7 @@ from monovo_cli.core.keyframe import Keyframe, build_keyframe, footprint
 from monovo_cli.core.motion_covariance import MotionCovariance
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane_tracker import PlaneTracker
+from monovo_cli.core.relief import Relief, carried, lifted_levels, refine_pose_and_relief
 from monovo_cli.core.robust import inlier_fraction
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import TrackingError
@@ -107,6 +108,8 @@ class Odometry:
         self._chance_msd = np.inf  # msd of unrelated images (see step)
         self._prev_image: np.ndarray | None = None
         self._key_image: np.ndarray | None = None  # the keyframe's image (plane test)
+        # keyframes left with the relief their successor measured (for the terrain products)
+        self.retired: list[Keyframe] = []
         self._bridging = Bridging(camera, mask=mask, region=region)  # the feature hypothesis
         self._key_msd: float | None = None  # msd of the first frame fitted to the keyframe
         self._lost_run = 0  # frames lost in a row
@@ -199,11 +202,19 @@ class Odometry:
         if self._plane.unsettled and self._key.index != index:
             est = self._settle_plane(pyr, est)
         key = self._key
-        cur_from_key = orthonormalize(est.cur_from_key)
-        gain, bias = est.gain, est.bias
         status = FrameStatus.OK
         recovering = self._state is OdometryState.RECOVERING
-        reanchor = recovering or self._needs_reanchor(est, key, cur_from_key)
+        reanchor = recovering or self._needs_reanchor(est, key, orthonormalize(est.cur_from_key))
+        relief = None
+        if reanchor and key.index != index and self.options.relief:
+            est, relief, lifted = refine_pose_and_relief(key.levels[0], key.plane, pyr[0], est,
+                                                         self.options.estimator, start=key.relief)
+            if lifted is None:
+                relief = None
+            else:  # the keyframe's finest points at the heights found
+                self.retired.append(replace(key, levels=(lifted,) + key.levels[1:], relief=relief))
+        cur_from_key = orthonormalize(est.cur_from_key)
+        gain, bias = est.gain, est.bias
         plane_cur, plane_cov = key.plane.in_frame(cur_from_key), None
         if reanchor and key.index != index:
             # The next keyframe's plane (in this camera); the pose keeps the fixed-plane
@@ -225,7 +236,8 @@ class Odometry:
         self._lost_run = 0
         if self._key_msd is None:
             self._key_msd = est.msd
-        if reanchor and self._reanchor(index, image, pyr, world_from_cur, plane_cur, plane_cov):
+        if reanchor and self._reanchor(index, image, pyr, world_from_cur, plane_cur, plane_cov,
+                                       None if relief is None else (relief, cur_from_key)):
             status = FrameStatus.REANCHORED
         elif not recovering:  # (a recovering tracker whose new keyframe failed stays so)
             self._state = OdometryState.TRACKING
@@ -323,14 +335,20 @@ class Odometry:
         return new
 
     def _reanchor(self, index: int, image: np.ndarray, pyr: list[np.ndarray],
-                  world_from_cur: np.ndarray, plane: Plane, cov: np.ndarray | None = None) -> bool:
+                  world_from_cur: np.ndarray, plane: Plane, cov: np.ndarray | None = None,
+                  relief: tuple[Relief, np.ndarray] | None = None) -> bool:
         """Anchor a new ground model on this frame (``plane`` in its camera, ``cov`` its
-        covariance, None: the prior's); False if the frame cannot carry one."""
+        covariance, None: the prior's; ``relief``: the old keyframe's relief and this frame's
+        pose from it, carried onto the new points); False if the frame cannot carry one."""
         try:
-            self._key = build_keyframe(index, image, self.camera, plane, self.region,
-                                       world_from_cur, self.options, mask=self.mask, pyramid=pyr)
+            key = build_keyframe(index, image, self.camera, plane, self.region,
+                                 world_from_cur, self.options, mask=self.mask, pyramid=pyr)
         except TrackingError:
             return False
+        if relief is not None:
+            new = carried(*relief, plane, key.levels[0].points.X)
+            key = replace(key, levels=lifted_levels(key.levels, new), relief=new)
+        self._key = key
         self._plane.anchored(cov)
         self._cur_from_key_prev = np.eye(4)
         self._motion_cov.anchored()
@@ -393,6 +411,10 @@ def track(frames: Iterable[tuple[int, float, np.ndarray | None]], camera: Pinhol
     for res in itertools.chain([first], (odo.skip(i, t) if im is None else
                                          odo.step(i, t, im, (priors or {}).get(i))
                                          for i, t, im in it)):
-        if on_keyframe is not None and odo.keyframe is not seen:
-            on_keyframe(seen := odo.keyframe)
+        if on_keyframe is not None:
+            for key in odo.retired:  # (rebuilt in place: the points at their relief)
+                on_keyframe(key)
+            if odo.keyframe is not seen:
+                on_keyframe(seen := odo.keyframe)
+        odo.retired.clear()
         yield res

@@ -64,6 +64,7 @@ class TrackOptions:
     max_condition: float = 1e7
     max_step_m: float | None = None
     max_step_deg: float | None = None
+    relief: bool = False
     estimator: EstimatorOptions = field(default_factory=EstimatorOptions)
 
 

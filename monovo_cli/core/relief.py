@@ -1,0 +1,312 @@
+"""Ground that is not a plane: a keyframe's relief, estimated with the motion (issue 14).
+
+The paper's "future work" made concrete: the keyframe's ground is its plane plus a **height
+field on a grid of vertices** over the model rectangle (a mesh of quads, bilinear within
+each), ``GRID_CELL`` m apart. An observation point keeps its keyframe pixel, so it moves
+along its ray: on the plane ``n . X = d`` a point at height ``h`` above it (toward the
+camera) is ``X = r (d - h) / (n . r)``, ``r = K^-1 (u, v, 1)``, exactly linear in ``h``,
+and ``h`` is the bilinear blend of its cell's four vertex heights.
+
+When a keyframe is left, :func:`refine_pose_and_relief` solves the two-view problem of the
+keyframe and the frame that replaces it: the pose (with the affine brightness model) and
+every vertex height, jointly, by Gauss-Newton on the intensity differences of a subsample of
+the finest level's points (Huber weights, the scale from the median absolute deviation),
+with a prior toward the plane (``HEIGHT_SIGMA`` per vertex: the plane stays the gauge of
+scale) and a smoothness prior (``CURVATURE_SIGMA`` on each second difference, which also
+carries the heights into cells no point falls in). The pose then comes from all the finest
+level's points lifted onto that relief (the estimator's warp of the points themselves), so
+the chain of keyframes no longer inherits the plane's model error.
+
+Derivatives (left perturbation ``T <- exp(delta^) T`` of ``cur_from_key``, ``Xc = T X``):
+``dr/d delta`` is the observation row at ``Xc`` (:func:`~monovo_cli.core.jacobian.observation_rows`,
+with the current image's gradient), ``dr/d h = (a . R r) * (-1 / (n . r))`` with ``a`` the
+row's first three entries (d intensity / d Xc), ``dr/d gain = -I_key``, ``dr/d bias = -1``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from monovo_cli.core.estimate import Estimate, EstimatorOptions, KeyLevel, estimate_motion
+from monovo_cli.core.jacobian import observation_rows, project_in_front
+from monovo_cli.core.robust import mad_scale, robust_weights
+from monovo_cli.geometry.lie import se3_exp
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.image.gradients import sobel_gradient
+from monovo_cli.image.sampling import sample_bilinear
+
+GRID_CELL = 0.4  # m between the grid's vertices on the ground
+MAX_VERTICES_PER_SIDE = 32
+HEIGHT_SIGMA = 0.05  # m: prior std of a vertex's height off the keyframe plane
+CURVATURE_SIGMA = 0.02  # m: prior std of a second difference of the heights
+SAMPLE_POINTS = 30000  # points of the finest level used for the joint solution
+ITERATIONS = 6
+HEIGHT_TOLERANCE = 5e-4  # m: the iterations stop when no height moves more (and the pose < 0.01 mm)
+MEAN_SIGMA = 0.001  # m: the points' mean height is the plane's (the gauge of scale)
+TILT_SIGMA = 0.0
+SIGNIFICANCE = 3.0  # sigma of the chi-square over the heights (Relief.significant)
+
+
+def plane_axes(plane: Plane) -> np.ndarray:
+    """(2, 3): the plane's ``right`` and ``forward`` axes (keyframe camera): forward is the
+    optical axis projected onto the plane, right = normal x forward."""
+    n = plane.normal
+    fwd = np.array([0.0, 0.0, 1.0]) - n[2] * n
+    if np.linalg.norm(fwd) < 1e-9:  # looking straight down: image up
+        fwd = np.array([0.0, -1.0, 0.0]) - n[1] * n
+    fwd /= np.linalg.norm(fwd)
+    return np.stack([np.cross(n, fwd), fwd])
+
+
+@dataclass(frozen=True)
+class Relief:
+    """Heights ``h`` (ny, nx) m above ``plane`` (toward the camera; keyframe camera) at the
+    vertices of a grid on it: vertex ``[j, i]`` at ``(x0 + i cell, y0 + j cell)`` along the
+    plane's (right, forward) axes (:func:`plane_axes`), ``origin = (x0, y0)``."""
+
+    plane: Plane
+    origin: tuple[float, float]
+    cell: float
+    h: np.ndarray
+    chi2: float = 0.0
+
+    @property
+    def significant(self) -> bool:
+        """The images support the heights: their chi-square (``chi2``, from the images alone,
+        the pose free) exceeds what noise gives over ``h.size`` heights by SIGNIFICANCE sigma."""
+        dof = self.h.size
+        return self.chi2 > dof + SIGNIFICANCE * np.sqrt(2.0 * dof)
+
+    @classmethod
+    def flat(cls, plane: Plane, X: np.ndarray, cell: float | None = None) -> Relief:
+        """Zero heights on a grid of ``cell`` m covering points ``X`` (N, 3) on the plane
+        (coarser where that would take more than MAX_VERTICES_PER_SIDE vertices)."""
+        xy = X @ plane_axes(plane).T
+        lo, hi = xy.min(axis=0), xy.max(axis=0)
+        cell = max(GRID_CELL if cell is None else cell,
+                   float(np.max(hi - lo)) / (MAX_VERTICES_PER_SIDE - 1))
+        nx, ny = (int(np.ceil((hi[k] - lo[k]) / cell + 1e-9)) + 1 for k in (0, 1))
+        return cls(plane, (float(lo[0]), float(lo[1])), cell, np.zeros((max(ny, 2), max(nx, 2))))
+
+    def weights(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bilinear blend at points ``X`` (N, 3) (their position along the plane): vertex
+        indices (N, 4) into ``h.ravel()`` (the cell's corners, first row then second) and
+        their weights (N, 4)."""
+        ny, nx = self.h.shape
+        xy = X @ plane_axes(self.plane).T
+        s = np.clip((xy[:, 0] - self.origin[0]) / self.cell, 0.0, nx - 1.0)
+        t = np.clip((xy[:, 1] - self.origin[1]) / self.cell, 0.0, ny - 1.0)
+        i0 = np.minimum(np.floor(s).astype(np.int64), nx - 2)
+        j0 = np.minimum(np.floor(t).astype(np.int64), ny - 2)
+        fs, ft = s - i0, t - j0
+        first = j0 * nx + i0
+        idx = np.stack([first, first + 1, first + nx, first + nx + 1], axis=1)
+        w = np.stack([(1 - fs) * (1 - ft), fs * (1 - ft), (1 - fs) * ft, fs * ft], axis=1)
+        return idx, w
+
+    def heights(self, X: np.ndarray) -> np.ndarray:
+        """The relief's height (N,) m under points ``X`` (N, 3) on the plane."""
+        idx, w = self.weights(X)
+        return np.sum(self.h.ravel()[idx] * w, axis=1)
+
+    def lift(self, X: np.ndarray) -> np.ndarray:
+        """Points ``X`` (N, 3) on the plane moved along their rays to the relief."""
+        return X * ((self.plane.distance - self.heights(X)) / (X @ self.plane.normal))[:, None]
+
+
+def on_plane(plane: Plane, X: np.ndarray) -> np.ndarray:
+    """Points ``X`` (N, 3) moved along their rays onto ``plane``."""
+    return X * (plane.distance / (X @ plane.normal))[:, None]
+
+
+def carried(relief: Relief, cur_from_key: np.ndarray, plane: Plane, X: np.ndarray) -> Relief:
+    """``relief`` (of a keyframe) seen from a new keyframe at ``cur_from_key`` (4x4): a
+    relief on the new keyframe's ``plane`` (its camera) over its points ``X`` (N, 3, on that
+    plane), each vertex at the height of the old relief's surface under it (the old grid's
+    edge values beyond its extent)."""
+    new = Relief.flat(plane, X)
+    ny, nx = new.h.shape
+    ax = plane_axes(plane)
+    j, i = np.mgrid[0:ny, 0:nx]
+    P = (plane.distance * plane.normal + (new.origin[0] + i.ravel() * new.cell)[:, None] * ax[0]
+         + (new.origin[1] + j.ravel() * new.cell)[:, None] * ax[1])  # vertices, new camera
+    R, t = cur_from_key[:3, :3], cur_from_key[:3, 3]
+    n0, d0 = relief.plane.normal, relief.plane.distance
+    Q = (P - t) @ R  # in the old keyframe's camera
+    Q = Q + (d0 - Q @ n0)[:, None] * n0  # onto the old plane, along its normal
+    S = (Q - relief.heights(Q)[:, None] * n0) @ R.T + t  # the old surface, new camera
+    new = replace(new, h=(plane.distance - S @ plane.normal).reshape(ny, nx))
+    # Its shape only: the plane through the heights under the new points is taken out (the
+    # new keyframe's plane, the MAP of the plane beliefs, holds distance and tilt).
+    step = max(1, len(X) // 5000)
+    xy = X[::step] @ ax.T
+    A = np.column_stack([np.ones(len(xy)), xy])
+    coef = np.linalg.lstsq(A, new.heights(X[::step]), rcond=None)[0]
+    vx = new.origin[0] + i.ravel() * new.cell
+    vy = new.origin[1] + j.ravel() * new.cell
+    flat = coef[0] + coef[1] * vx + coef[2] * vy
+    return replace(new, h=new.h - flat.reshape(ny, nx))
+
+
+def lifted_levels(levels: tuple[KeyLevel, ...], relief: Relief) -> tuple[KeyLevel, ...]:
+    """A keyframe's levels (points on ``relief.plane``) with every point lifted onto the relief."""
+    return tuple(KeyLevel.from_points(replace(kl.points, X=relief.lift(on_plane(relief.plane, kl.points.X))))
+                 for kl in levels)
+
+
+def _second_differences(ny: int, nx: int) -> np.ndarray:
+    """Rows (M, ny nx) of the second differences of a grid along both sides."""
+    rows = []
+    for j in range(ny):
+        for i in range(1, nx - 1):
+            r = np.zeros(ny * nx)
+            r[j * nx + i - 1], r[j * nx + i], r[j * nx + i + 1] = 1.0, -2.0, 1.0
+            rows.append(r)
+    for j in range(1, ny - 1):
+        for i in range(nx):
+            r = np.zeros(ny * nx)
+            r[(j - 1) * nx + i], r[j * nx + i], r[(j + 1) * nx + i] = 1.0, -2.0, 1.0
+            rows.append(r)
+    return np.array(rows).reshape(-1, ny * nx)
+
+
+def relief_rows(camera, Xc: np.ndarray, gx: np.ndarray, gy: np.ndarray,
+                dXc_dh: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The derivatives of the intensity at the projection of points ``Xc`` (N, 3, current
+    camera; image gradients ``gx``, ``gy`` (N,) there, grey levels per px): the observation
+    rows (6, N) of the twist of a left perturbation ``exp(delta^) Xc`` and ``dI/dh`` (N,),
+    the derivative along ``dXc_dh`` (N, 3), each point's motion per metre of height."""
+    o = observation_rows(Xc, gx, gy, camera.fx, camera.fy)
+    return o, np.einsum("kn,nk->n", o[:3], dXc_dh)
+
+
+def solve_relief(level: KeyLevel, plane: Plane, image: np.ndarray,
+                 cur_from_key: np.ndarray, *, start: Relief | None = None,
+                 gain: float = 1.0, bias: float = 0.0,
+                 options: EstimatorOptions | None = None, iterations: int | None = None,
+                 sample_points: int | None = None) -> tuple[Relief, np.ndarray, float, float]:
+    """The joint Gauss-Newton of the module docstring on the finest ``level`` (points on
+    ``plane``, or lifted onto the relief ``start`` on it, whose heights the solution starts
+    from) and the current frame's finest ``image`` from ``cur_from_key`` (4x4):
+    ``(relief, cur_from_key, gain, bias)``."""
+    opts = options or EstimatorOptions()
+    iterations = ITERATIONS if iterations is None else iterations
+    pts = level.points
+    step = max(1, len(pts) // (SAMPLE_POINTS if sample_points is None else sample_points))
+    X_plane = on_plane(plane, pts.X)
+    X0 = X_plane[::step]
+    I_key = pts.intensity[::step].astype(np.float64)
+    relief = Relief.flat(plane, X_plane) if start is None else start
+    ny, nx = relief.h.shape
+    V = ny * nx
+    idx, bw = relief.weights(X0)
+    # Points sorted by cell (named by its first vertex), so that per-cell sums are one
+    # reduceat; a cell's sums go to its 4 vertices (offsets 0, 1, nx, nx + 1).
+    order = np.argsort(idx[:, 0], kind="stable")
+    X0, I_key, idx, bw = X0[order], I_key[order], idx[order], bw[order]
+    cells, starts = np.unique(idx[:, 0], return_index=True)
+    corner = cells[None, :] + np.array([0, 1, nx, nx + 1])[:, None]  # (4, cells)
+    pairs = [(a, b) for a in range(4) for b in range(a, 4)]
+    rays = X0 / X0[:, 2:3]
+    dz_dh = -rays / (rays @ plane.normal)[:, None]  # dX/dh (N, 3), keyframe camera
+    D2 = _second_differences(ny, nx)
+    prior = np.eye(V) / HEIGHT_SIGMA ** 2 + D2.T @ D2 / CURVATURE_SIGMA ** 2
+    if MEAN_SIGMA:  # the gauge: the points' mean height is the plane's
+        a = np.zeros(V)
+        for k in range(4):
+            a += np.bincount(idx[:, k], weights=bw[:, k], minlength=V)
+        a /= len(X0)
+        prior = prior + np.outer(a, a) / MEAN_SIGMA ** 2
+    if TILT_SIGMA:
+        xy = X0 @ plane_axes(plane).T
+        xy = (xy - xy.mean(axis=0)) / xy.std(axis=0)
+        for c in range(2):
+            a = np.zeros(V)
+            for k in range(4):
+                a += np.bincount(idx[:, k], weights=bw[:, k] * xy[:, c], minlength=V)
+            a /= len(X0)
+            prior = prior + np.outer(a, a) / TILT_SIGMA ** 2
+    gx_img, gy_img = sobel_gradient(np.ascontiguousarray(image, dtype=np.float32))
+    cam = pts.camera
+    T = np.array(cur_from_key, dtype=np.float64)
+    h = relief.h.ravel().copy()
+    Hhh = Hph = Hpp = None
+    sigma2 = 1.0
+    for _ in range(iterations):
+        X = X0 + dz_dh * (np.sum(h[idx] * bw, axis=1))[:, None]
+        Xc = X @ T[:3, :3].T + T[:3, 3]
+        u, v, front = project_in_front(cam, Xc)
+        vals, ok = sample_bilinear(image, u, v)
+        gx, _ = sample_bilinear(gx_img, u, v)
+        gy, _ = sample_bilinear(gy_img, u, v)
+        ok &= front
+        if np.count_nonzero(ok) < max(opts.min_valid_points, 50):
+            break
+        r = np.where(ok, vals - (gain * I_key + bias), 0.0)
+        w = robust_weights(r.astype(np.float32), opts.robust, huber_k=opts.huber_k,
+                           tukey_c=opts.tukey_c, scale=mad_scale(r.astype(np.float32), ok))[0]
+        w = np.where(ok, w, 0.0).astype(np.float64)
+        sigma2 = max(float(np.sum(w * r * r) / max(np.sum(w), 1.0)), 1e-6)
+        o, jh = relief_rows(cam, np.where(ok[:, None], Xc, 1.0), np.where(ok, gx, 0.0),
+                            np.where(ok, gy, 0.0), dz_dh @ T[:3, :3].T)
+        Jp = np.vstack([o, -I_key[None, :], -np.ones((1, len(r)))])  # (8, N)
+        # Normal equations over (pose 8, heights V); a point's height column is jh blended
+        # over its cell's vertices by bw.
+        wr, wj = w * r, w * jh
+        Hpp = (Jp * w) @ Jp.T
+        gp = Jp @ wr
+        per_cell = np.add.reduceat(np.vstack([
+            (Jp[:, None, :] * (wj * bw.T)[None, :, :]).reshape(32, -1),  # (p, k)
+            np.stack([wj * jh * bw[:, a] * bw[:, b] for a, b in pairs]),
+            (wr * jh) * bw.T]), starts, axis=1)
+        Hph = np.zeros((8, V))
+        Hhh = np.zeros((V, V))
+        gh = np.zeros(V)
+        for k in range(4):
+            Hph[:, corner[k]] += per_cell[k:32:4]
+            gh[corner[k]] += per_cell[42 + k]
+        for m, (a, b) in enumerate(pairs):
+            Hhh[corner[a], corner[b]] += per_cell[32 + m]
+            if a != b:
+                Hhh[corner[b], corner[a]] += per_cell[32 + m]
+        H = np.block([[Hpp, Hph], [Hph.T, Hhh + sigma2 * prior]])
+        g = np.concatenate([gp, gh + sigma2 * prior @ h])
+        try:
+            dx = -np.linalg.solve(H, g)
+        except np.linalg.LinAlgError:
+            break
+        T = se3_exp(dx[:6]) @ T
+        gain, bias, h = gain + dx[6], bias + dx[7], h + dx[8:]
+        if np.max(np.abs(dx[8:])) < HEIGHT_TOLERANCE and np.linalg.norm(dx[:3]) < 1e-5:
+            break
+    chi2 = 0.0
+    if Hhh is not None:  # what the images alone say of the heights, the pose set free
+        try:
+            M = Hhh - Hph.T @ np.linalg.solve(Hpp, Hph)
+            chi2 = float(h @ M @ h) / sigma2
+        except np.linalg.LinAlgError:
+            chi2 = 0.0
+    return replace(relief, h=h.reshape(ny, nx), chi2=chi2), T, float(gain), float(bias)
+
+
+def refine_pose_and_relief(level: KeyLevel, plane: Plane, image: np.ndarray,
+                           est: Estimate, options: EstimatorOptions, *,
+                           start: Relief | None = None
+                           ) -> tuple[Estimate, Relief, KeyLevel | None]:
+    """:func:`solve_relief` from the estimate ``est`` over the plane (or over ``start``, the
+    relief the level's points were lifted onto), then the pose from all the level's points
+    lifted onto the relief found: ``(estimate, relief, the lifted level)``. ``est`` comes back
+    (with the relief found, and no level) where the images do not support the relief
+    (:attr:`Relief.significant`: ground that is a plane, where the heights would only add
+    their noise) or the pose does not converge."""
+    relief, T, gain, bias = solve_relief(level, plane, image, est.cur_from_key, start=start,
+                                         gain=est.gain, bias=est.bias, options=options)
+    if not relief.significant:
+        return est, relief, None
+    lifted, = lifted_levels((level,), relief)
+    new = estimate_motion((lifted,), (image,), T, options=options, gain=gain, bias=bias)
+    if not new.converged or not np.all(np.isfinite(new.cur_from_key)):
+        return est, relief, None
+    return new, relief, lifted
