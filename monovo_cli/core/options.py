@@ -45,6 +45,9 @@ class TrackOptions:
     its msd exceeds ``msd_factor`` times the recent median, the normal matrix's condition
     number exceeds ``max_condition``, the finest level hits the iteration cap, or its motion
     exceeds ``max_step_m`` / ``max_step_deg``.
+    With ``relief``, a keyframe that is left gets the heights of its ground off its plane,
+    solved with the motion of the frame that leaves it where the images show them
+    (:mod:`monovo_cli.core.relief`); they are carried to the next keyframe.
     """
 
     levels: int | None = None
@@ -64,7 +67,7 @@ class TrackOptions:
     max_condition: float = 1e7
     max_step_m: float | None = None
     max_step_deg: float | None = None
-    relief: bool = False
+    relief: bool = True
     estimator: EstimatorOptions = field(default_factory=EstimatorOptions)
 
 

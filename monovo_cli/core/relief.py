@@ -42,6 +42,7 @@ MAX_VERTICES_PER_SIDE = 32
 HEIGHT_SIGMA = 0.05  # m: prior std of a vertex's height off the keyframe plane
 CURVATURE_SIGMA = 0.02  # m: prior std of a second difference of the heights
 SAMPLE_POINTS = 30000  # points of the finest level used for the joint solution
+QUICK_POINTS, QUICK_ITERATIONS, QUICK_CELL = 4000, 2, 0.8  # the test for a relief at all
 ITERATIONS = 6
 HEIGHT_TOLERANCE = 5e-4  # m: the iterations stop when no height moves more (and the pose < 0.01 mm)
 MEAN_SIGMA = 0.001  # m: the points' mean height is the plane's (the gauge of scale)
@@ -156,20 +157,15 @@ def lifted_levels(levels: tuple[KeyLevel, ...], relief: Relief) -> tuple[KeyLeve
                  for kl in levels)
 
 
-def _second_differences(ny: int, nx: int) -> np.ndarray:
-    """Rows (M, ny nx) of the second differences of a grid along both sides."""
-    rows = []
-    for j in range(ny):
-        for i in range(1, nx - 1):
-            r = np.zeros(ny * nx)
-            r[j * nx + i - 1], r[j * nx + i], r[j * nx + i + 1] = 1.0, -2.0, 1.0
-            rows.append(r)
-    for j in range(1, ny - 1):
-        for i in range(nx):
-            r = np.zeros(ny * nx)
-            r[(j - 1) * nx + i], r[j * nx + i], r[(j + 1) * nx + i] = 1.0, -2.0, 1.0
-            rows.append(r)
-    return np.array(rows).reshape(-1, ny * nx)
+def _curvature_normal(ny: int, nx: int) -> np.ndarray:
+    """``D^T D`` (ny nx, ny nx) for the rows ``D`` of the grid's second differences along both
+    sides (vertex ``[j, i]`` at ``j nx + i``)."""
+    def one_side(n: int) -> np.ndarray:
+        D = np.zeros((max(n - 2, 0), n))
+        for k in range(n - 2):
+            D[k, k:k + 3] = (1.0, -2.0, 1.0)
+        return D.T @ D
+    return np.kron(np.eye(ny), one_side(nx)) + np.kron(one_side(ny), np.eye(nx))
 
 
 def relief_rows(camera, Xc: np.ndarray, gx: np.ndarray, gy: np.ndarray,
@@ -186,7 +182,8 @@ def solve_relief(level: KeyLevel, plane: Plane, image: np.ndarray,
                  cur_from_key: np.ndarray, *, start: Relief | None = None,
                  gain: float = 1.0, bias: float = 0.0,
                  options: EstimatorOptions | None = None, iterations: int | None = None,
-                 sample_points: int | None = None) -> tuple[Relief, np.ndarray, float, float]:
+                 sample_points: int | None = None, cell: float | None = None
+                 ) -> tuple[Relief, np.ndarray, float, float]:
     """The joint Gauss-Newton of the module docstring on the finest ``level`` (points on
     ``plane``, or lifted onto the relief ``start`` on it, whose heights the solution starts
     from) and the current frame's finest ``image`` from ``cur_from_key`` (4x4):
@@ -195,10 +192,9 @@ def solve_relief(level: KeyLevel, plane: Plane, image: np.ndarray,
     iterations = ITERATIONS if iterations is None else iterations
     pts = level.points
     step = max(1, len(pts) // (SAMPLE_POINTS if sample_points is None else sample_points))
-    X_plane = on_plane(plane, pts.X)
-    X0 = X_plane[::step]
+    X0 = on_plane(plane, pts.X[::step])
     I_key = pts.intensity[::step].astype(np.float64)
-    relief = Relief.flat(plane, X_plane) if start is None else start
+    relief = Relief.flat(plane, X0, cell) if start is None else start
     ny, nx = relief.h.shape
     V = ny * nx
     idx, bw = relief.weights(X0)
@@ -211,8 +207,7 @@ def solve_relief(level: KeyLevel, plane: Plane, image: np.ndarray,
     pairs = [(a, b) for a in range(4) for b in range(a, 4)]
     rays = X0 / X0[:, 2:3]
     dz_dh = -rays / (rays @ plane.normal)[:, None]  # dX/dh (N, 3), keyframe camera
-    D2 = _second_differences(ny, nx)
-    prior = np.eye(V) / HEIGHT_SIGMA ** 2 + D2.T @ D2 / CURVATURE_SIGMA ** 2
+    prior = np.eye(V) / HEIGHT_SIGMA ** 2 + _curvature_normal(ny, nx) / CURVATURE_SIGMA ** 2
     if MEAN_SIGMA:  # the gauge: the points' mean height is the plane's
         a = np.zeros(V)
         for k in range(4):
@@ -301,6 +296,12 @@ def refine_pose_and_relief(level: KeyLevel, plane: Plane, image: np.ndarray,
     (with the relief found, and no level) where the images do not support the relief
     (:attr:`Relief.significant`: ground that is a plane, where the heights would only add
     their noise) or the pose does not converge."""
+    if start is None:  # first a quick look: is there a relief at all? (most ground: no)
+        quick = solve_relief(level, plane, image, est.cur_from_key, gain=est.gain,
+                             bias=est.bias, options=options, iterations=QUICK_ITERATIONS,
+                             sample_points=QUICK_POINTS, cell=QUICK_CELL)[0]
+        if not quick.significant:
+            return est, quick, None
     relief, T, gain, bias = solve_relief(level, plane, image, est.cur_from_key, start=start,
                                          gain=est.gain, bias=est.bias, options=options)
     if not relief.significant:
