@@ -108,7 +108,7 @@ class Odometry:
         self._chance_msd = np.inf  # msd of unrelated images (see step)
         self._prev_image: np.ndarray | None = None
         self._key_image: np.ndarray | None = None  # the keyframe's image (plane test)
-        # keyframes left with the relief their successor measured (for the terrain products)
+        # the keyframe the last step left, with the relief it measured (terrain products)
         self.retired: list[Keyframe] = []
         self._bridging = Bridging(camera, mask=mask, region=region)  # the feature hypothesis
         self._key_msd: float | None = None  # msd of the first frame fitted to the keyframe
@@ -143,6 +143,7 @@ class Odometry:
         """
         key = self._key
         assert key is not None, "call start() first"
+        self.retired.clear()
         if self._prev_image is not None and image.shape == self._prev_image.shape and \
                 np.array_equal(image, self._prev_image):
             return self._lost(index, timestamp, "duplicate of the previous frame")
@@ -205,7 +206,7 @@ class Odometry:
         status = FrameStatus.OK
         recovering = self._state is OdometryState.RECOVERING
         reanchor = recovering or self._needs_reanchor(est, key, orthonormalize(est.cur_from_key))
-        relief = None
+        relief, tracked = None, est
         if reanchor and key.index != index and self.options.relief:
             est, relief, lifted = refine_pose_and_relief(key.levels[0], key.plane, pyr[0], est,
                                                          self.options.estimator, start=key.relief)
@@ -227,6 +228,10 @@ class Odometry:
         cov = self._motion_cov.relative(est, key.levels[0], key.plane,
                                         self._plane.reported_covariance,
                                         self._cur_from_key_prev, prev_from_cur)
+        if relief is not None:  # the correction the relief made is this motion's model error
+            jump = _motion_change(prev_from_cur, se3_inv(self._world_from_prev)
+                                  @ key.world_from_key @ se3_inv(orthonormalize(tracked.cur_from_key)))
+            cov = cov + np.outer(jump, jump)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         self._velocity = se3_inv(prev_from_cur)
         self._world_from_prev = world_from_cur
@@ -385,6 +390,12 @@ class Odometry:
         return res
 
 
+def _motion_change(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(6,) (m, rad): motion ``a`` (4x4) less motion ``b`` in (tx, ty, tz, rx, ry, rz), the
+    rotation as the rotation vector of ``a_R b_R^T``."""
+    return np.concatenate([a[:3, 3] - b[:3, 3], so3_log(a[:3, :3] @ b[:3, :3].T)])
+
+
 def track(frames: Iterable[tuple[int, float, np.ndarray | None]], camera: PinholeCamera,
           plane: Plane, region: tuple[int, int, int, int], options: TrackOptions | None = None,
           *, mask: np.ndarray | None = None, first_keyframe: Keyframe | None = None,
@@ -416,5 +427,4 @@ def track(frames: Iterable[tuple[int, float, np.ndarray | None]], camera: Pinhol
                 on_keyframe(key)
             if odo.keyframe is not seen:
                 on_keyframe(seen := odo.keyframe)
-        odo.retired.clear()
         yield res
