@@ -45,7 +45,7 @@ GRID_CELL = 0.4  # m between the grid's vertices on the ground
 MAX_VERTICES_PER_SIDE = 32
 HEIGHT_SIGMA = 0.05  # m: prior std of a vertex's height off the heights' best-fit plane
 CURVATURE_SIGMA = 0.02  # m: prior std of a second difference of the heights
-SAMPLE_POINTS = 30000  # points of the finest level used for the joint solution
+SAMPLE_POINTS = 20000  # points of the finest level used for the joint solution
 QUICK_POINTS, QUICK_ITERATIONS, QUICK_CELL = 4000, 2, 0.8  # the test for a relief at all
 ITERATIONS = 6
 HEIGHT_TOLERANCE = 5e-4  # m: the iterations stop when no height moves more (and the pose < 0.01 mm)
@@ -99,22 +99,31 @@ class Relief:
         """Bilinear blend at points ``X`` (N, 3) (their position along the plane): vertex
         indices (N, 4) into ``h.ravel()`` (the cell's corners, first row then second) and
         their weights (N, 4)."""
-        ny, nx = self.h.shape
-        xy = X @ plane_axes(self.plane).T
-        s = np.clip((xy[:, 0] - self.origin[0]) / self.cell, 0.0, nx - 1.0)
-        t = np.clip((xy[:, 1] - self.origin[1]) / self.cell, 0.0, ny - 1.0)
-        i0 = np.minimum(np.floor(s).astype(np.int64), nx - 2)
-        j0 = np.minimum(np.floor(t).astype(np.int64), ny - 2)
-        fs, ft = s - i0, t - j0
-        first = j0 * nx + i0
+        first, fs, ft = self._cells(X)
+        nx = self.h.shape[1]
         idx = np.stack([first, first + 1, first + nx, first + nx + 1], axis=1)
         w = np.stack([(1 - fs) * (1 - ft), fs * (1 - ft), (1 - fs) * ft, fs * ft], axis=1)
         return idx, w
 
+    def _cells(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each point's cell (its first vertex's index) and position in it (N,), (N,), (N,)."""
+        ny, nx = self.h.shape
+        ax = plane_axes(self.plane)
+        X = np.ascontiguousarray(X, dtype=np.float64)
+        s = np.clip((X @ ax[0] - self.origin[0]) / self.cell, 0.0, nx - 1.0)
+        t = np.clip((X @ ax[1] - self.origin[1]) / self.cell, 0.0, ny - 1.0)
+        i0 = np.minimum(s.astype(np.int64), nx - 2)  # (s >= 0: truncation is the floor)
+        j0 = np.minimum(t.astype(np.int64), ny - 2)
+        return j0 * nx + i0, s - i0, t - j0
+
     def heights(self, X: np.ndarray) -> np.ndarray:
         """The relief's height (N,) m under points ``X`` (N, 3) on the plane."""
-        idx, w = self.weights(X)
-        return np.sum(self.h.ravel()[idx] * w, axis=1)
+        first, fs, ft = self._cells(X)
+        h = self.h.ravel()
+        nx = self.h.shape[1]
+        top = h[first] + fs * (h[first + 1] - h[first])
+        bottom = h[first + nx] + fs * (h[first + nx + 1] - h[first + nx])
+        return top + ft * (bottom - top)
 
     def lift(self, X: np.ndarray) -> np.ndarray:
         """Points ``X`` (N, 3) on the plane moved along their rays to the relief."""
@@ -131,7 +140,8 @@ def carried(relief: Relief, cur_from_key: np.ndarray, plane: Plane, X: np.ndarra
     relief on the new keyframe's ``plane`` (its camera) over its points ``X`` (N, 3, on that
     plane), each vertex at the height of the old relief's surface under it (the old grid's
     edge values beyond its extent)."""
-    new = Relief.flat(plane, X)
+    step = max(1, len(X) // 5000)
+    new = Relief.flat(plane, X[::step])  # (points beyond a sample's extent: the edge heights)
     ny, nx = new.h.shape
     ax = plane_axes(plane)
     j, i = np.mgrid[0:ny, 0:nx]
@@ -145,7 +155,6 @@ def carried(relief: Relief, cur_from_key: np.ndarray, plane: Plane, X: np.ndarra
     new = replace(new, h=(plane.distance - S @ plane.normal).reshape(ny, nx))
     # Its shape only: the plane through the heights under the new points is taken out (the
     # new keyframe's plane, the MAP of the plane beliefs, holds distance and tilt).
-    step = max(1, len(X) // 5000)
     xy = X[::step] @ ax.T
     A = np.column_stack([np.ones(len(xy)), xy])
     coef = np.linalg.lstsq(A, new.heights(X[::step]), rcond=None)[0]
@@ -241,6 +250,7 @@ def solve_relief(level: KeyLevel, plane: Plane, image: np.ndarray,
     cells, starts = np.unique(idx[:, 0], return_index=True)
     corner = cells[None, :] + np.array([0, 1, nx, nx + 1])[:, None]  # (4, cells)
     pairs = [(a, b) for a in range(4) for b in range(a, 4)]
+    bwT = np.ascontiguousarray(bw.T, dtype=np.float32)
     rays = X0 / X0[:, 2:3]
     dz_dh = -rays / (rays @ plane.normal)[:, None]  # dX/dh (N, 3), keyframe camera
     prior = _prior(relief, X0, idx, bw)
@@ -273,10 +283,15 @@ def solve_relief(level: KeyLevel, plane: Plane, image: np.ndarray,
         wr, wj = w * r, w * jh
         Hpp = (Jp * w) @ Jp.T
         gp = Jp @ wr
-        per_cell = np.add.reduceat(np.vstack([
-            (Jp[:, None, :] * (wj * bw.T)[None, :, :]).reshape(32, -1),  # (p, k)
-            np.stack([wj * jh * bw[:, a] * bw[:, b] for a, b in pairs]),
-            (wr * jh) * bw.T]), starts, axis=1)
+        # (float32: sums of ~100 terms per cell, for normal equations of a Gauss-Newton step)
+        F = np.empty((46, len(r)), np.float32)
+        np.multiply(Jp.astype(np.float32)[:, None, :], (wj * bw.T).astype(np.float32)[None],
+                    out=F[:32].reshape(8, 4, -1))  # rows p * 4 + k
+        wjj = (wj * jh).astype(np.float32)
+        for m, (a, b) in enumerate(pairs):
+            np.multiply(wjj, bwT[a] * bwT[b], out=F[32 + m])
+        np.multiply((wr * jh).astype(np.float32), bwT, out=F[42:46])
+        per_cell = np.add.reduceat(F, starts, axis=1).astype(np.float64)
         Hph = np.zeros((8, V))
         Hhh = np.zeros((V, V))
         gh = np.zeros(V)
