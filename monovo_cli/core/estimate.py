@@ -34,6 +34,10 @@ jointly (two more columns ``(I_i, 1)`` in O, section "photometric" of docs/algor
 the weights W come from a Huber (or Tukey) M-estimator with the scale from the residuals'
 median absolute deviation, and the covariance of the estimate is sigma^2 (O^T W O)^-1 with
 sigma^2 from the weighted residuals.
+
+Long module: the keyframe level's precomputed rows and warps (:class:`KeyLevel`: the
+plane's homography, points with depths of their own, lens distortion) and the solver that
+iterates over them share one point layout and are read together.
 """
 
 from __future__ import annotations

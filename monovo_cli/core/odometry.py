@@ -14,6 +14,11 @@ prediction, and the model is re-anchored on the next good frame (:class:`Odometr
 
 The ground model itself is built by :mod:`monovo_cli.core.keyframe`; the settings are
 :class:`~monovo_cli.core.options.TrackOptions`.
+
+Long module: one state machine (prediction, capture, acceptance with the relief and the
+keyframe plane, re-anchoring, loss, re-initialisation) over one mutable state; its parts
+already live in their own modules (bridge, plane_tracker, relief, motion_covariance), and
+splitting the loop itself would pass that state around.
 """
 
 from __future__ import annotations
