@@ -357,9 +357,7 @@ class Odometry:
             return False
         if relief is not None:
             new = carried(*relief, plane, key.levels[0].points.X)
-            # (the finest level only: the coarse ones only bring the estimate within its reach)
-            key = replace(key, levels=lifted_levels(key.levels[:1], new) + key.levels[1:],
-                          relief=new)
+            key = replace(key, levels=lifted_levels(key.levels, new), relief=new)
         self._key = key
         self._plane.anchored(cov)
         self._cur_from_key_prev = np.eye(4)
