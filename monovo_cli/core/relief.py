@@ -34,7 +34,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from monovo_cli.core.estimate import Estimate, EstimatorOptions, KeyLevel, estimate_motion
-from monovo_cli.core.jacobian import observation_rows, project_in_front
+from monovo_cli.core.jacobian import distortion_jacobian, observation_rows, project_in_front
 from monovo_cli.core.robust import mad_scale, robust_weights
 from monovo_cli.geometry.lie import se3_exp
 from monovo_cli.geometry.plane import Plane
@@ -227,8 +227,10 @@ def relief_rows(camera, Xc: np.ndarray, gx: np.ndarray, gy: np.ndarray,
     """The derivatives of the intensity at the projection of points ``Xc`` (N, 3, current
     camera; image gradients ``gx``, ``gy`` (N,) there, grey levels per px): the observation
     rows (6, N) of the twist of a left perturbation ``exp(delta^) Xc`` and ``dI/dh`` (N,),
-    the derivative along ``dXc_dh`` (N, 3), each point's motion per metre of height."""
-    o = observation_rows(Xc, gx, gy, camera.fx, camera.fy)
+    the derivative along ``dXc_dh`` (N, 3), each point's motion per metre of height. A
+    camera with lens distortion gets its projection's Jacobian at the points."""
+    D = distortion_jacobian(camera, Xc) if camera.has_distortion else None
+    o = observation_rows(Xc, gx, gy, camera.fx, camera.fy, D)
     return o, np.einsum("kn,nk->n", o[:3], dXc_dh)
 
 
