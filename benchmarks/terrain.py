@@ -2,6 +2,7 @@
 
     python -m benchmarks.terrain                      # 4 drives of 300 frames (~15 min)
     python -m benchmarks.terrain --frames 100 --cases flat rolling
+    python -m benchmarks.terrain --frames 150 --seed 1 --cases rolling slope --plane-only
 
 Each case is a ``monovo synth --preset drive --terrain KIND`` sequence (512x512, noise
 variance 10, rendered by ray casting; the rover's body lies on the ground under its wheels
@@ -85,7 +86,8 @@ def terrain_errors(seq: Path, out: Path) -> tuple[float, float, float, float]:
             float(np.sqrt(np.mean(e_cells ** 2))), float(np.median(np.abs(e_cells))))
 
 
-def run_case(root: Path, kind: str, frames: int, seed: int, renders: Path | None = None) -> dict:
+def run_case(root: Path, kind: str, frames: int, seed: int, renders: Path | None = None,
+             options: TrackOptions | None = None) -> dict:
     """Render one terrain drive (or reuse it from ``renders``), track it with monovo and ECC;
     the figures of one table row."""
     seq = (renders or root) / f"{kind}_{frames}_{seed}"
@@ -93,7 +95,7 @@ def run_case(root: Path, kind: str, frames: int, seed: int, renders: Path | None
         synthesize(seq, preset="drive", terrain=kind, frames=frames, size=SIZE,
                    noise_var=NOISE_VAR, seed=seed)
     out = root / f"{kind}_out"
-    mono = monovo_on_drive(seq, out, TrackOptions(), terrain_out=True, overwrite=True)
+    mono = monovo_on_drive(seq, out, options or TrackOptions(), terrain_out=True, overwrite=True)
     heights = terrain_errors(seq, out)
     ecc = peer_on_drive(EccPeer(), seq)
     _, est, status = read_motion_csv(out / "motion.csv")
@@ -146,16 +148,20 @@ def main() -> None:
     ap.add_argument("--renders", type=Path, default=None,
                     help="keep the rendered drives in this folder and reuse them on the next run "
                          "[default: a temporary folder]")
+    ap.add_argument("--plane-only", action="store_true",
+                    help="monovo with --plane-only (the paper's one plane per keyframe, no relief)")
     args = ap.parse_args()
     one_core()
     print(f"Machine: {machine()}; {load()} at the start\n")
     print(f"Drives: `monovo synth --preset drive --terrain KIND --frames {args.frames} --seed "
           f"{args.seed}` ({SIZE[0]}x{SIZE[1]}, noise variance {NOISE_VAR:g}); monovo with "
-          "default options, end to end; ECC on the same PNGs. One core.\n")
+          f"{'--plane-only' if args.plane_only else 'default options'}, end to end; ECC on the "
+          "same PNGs. One core.\n")
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         for kind in args.cases:
-            results.append(run_case(Path(tmp), kind, args.frames, args.seed, args.renders))
+            results.append(run_case(Path(tmp), kind, args.frames, args.seed, args.renders,
+                                    TrackOptions(relief=not args.plane_only)))
             print(f"({kind} done, {load()})", flush=True)
     print()
     print(table(results))
