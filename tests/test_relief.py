@@ -588,3 +588,21 @@ def test_relief_rows_with_lens_distortion_match_finite_differences():
     # (a pinhole's rows would be off by the distortion: far more than that)
     o0, jh0 = relief_rows(CAM, Xc, *waves_gradient(u, v), dX_dh @ T[:3, :3].T)
     assert np.abs(np.vstack([o0, jh0]) - fd).max() > 1e-2 * np.abs(fd).max()
+
+
+@pytest.mark.parametrize("u1", [120.0, 60.0])
+def test_degenerate_points_keep_the_plane(u1):
+    """Points along one image row, or all at one pixel (the gauge's plane fit over their
+    ground positions degenerate): refine_pose_and_relief gives the estimate back, no
+    relief, and no error."""
+    rays = CAM.rays(np.column_stack([np.linspace(60.0, u1, 400), np.full(400, 100.0)]))
+    X = PLANE.intersect(rays)
+    uv = np.column_stack([CAM.fx * rays[:, 0] + CAM.cx, CAM.fy * rays[:, 1] + CAM.cy])
+    pts = LevelPoints(0, CAM, uv, X, np.linspace(50, 200, 400).astype(np.float32),
+                      np.ones((400, 2), np.float32), np.zeros((4, 3)))
+    level = KeyLevel.from_points(pts)
+    image = np.tile(np.linspace(0, 255, CAM.width, dtype=np.float32), (CAM.height, 1))
+    opts = TrackOptions().estimator
+    est = estimate_motion((level,), (image,), np.eye(4), options=opts)
+    new, relief, lifted = refine_pose_and_relief(level, PLANE, image, est, opts)
+    assert new is est and lifted is None and not relief.significant

@@ -344,14 +344,17 @@ def refine_pose_and_relief(level: KeyLevel, plane: Plane, image: np.ndarray,
     (with the relief found, and no level) where the images do not support the relief
     (:attr:`Relief.significant`: ground that is a plane, where the heights would only add
     their noise) or the pose does not converge."""
-    if start is None:  # first a quick look: is there a relief at all? (most ground: no)
-        quick = solve_relief(level, plane, image, est.cur_from_key, gain=est.gain,
-                             bias=est.bias, options=options, iterations=QUICK_ITERATIONS,
-                             sample_points=QUICK_POINTS, cell=QUICK_CELL)[0]
-        if not quick.significant:
-            return est, quick, None
-    relief, T, gain, bias = solve_relief(level, plane, image, est.cur_from_key, start=start,
-                                         gain=est.gain, bias=est.bias, options=options)
+    try:
+        if start is None:  # first a quick look: is there a relief at all? (most ground: no)
+            quick = solve_relief(level, plane, image, est.cur_from_key, gain=est.gain,
+                                 bias=est.bias, options=options, iterations=QUICK_ITERATIONS,
+                                 sample_points=QUICK_POINTS, cell=QUICK_CELL)[0]
+            if not quick.significant:
+                return est, quick, None
+        relief, T, gain, bias = solve_relief(level, plane, image, est.cur_from_key, start=start,
+                                             gain=est.gain, bias=est.bias, options=options)
+    except (ValueError, np.linalg.LinAlgError):  # degenerate points (e.g. all on one line)
+        return est, Relief.flat(plane, on_plane(plane, level.points.X)), None
     if not relief.significant:
         return est, relief, None
     lifted, = lifted_levels((level,), relief)
