@@ -1,7 +1,7 @@
 """The keyframe relief (core/relief.py): heights over the keyframe plane, solved with the pose.
 
 Pinned here: the geometry of a relief (a lifted point stays on its keyframe ray at its
-bilinear height; ``on_plane`` undoes it), the joint Gauss-Newton's derivatives against
+bilinear height; ``Plane.intersect`` undoes it), the joint Gauss-Newton's derivatives against
 finite differences, the estimator's warp of points that are not on one plane, the relief
 carried to the next keyframe against an analytic bump, a rendered two-view pair over a
 rolling and a flat ground, and the tracker's ``relief`` option on a short rolling drive.
@@ -29,7 +29,6 @@ from monovo_cli.core.relief import (
     _curvature_normal,
     carried,
     lifted_levels,
-    on_plane,
     plane_axes,
     refine_pose_and_relief,
     relief_rows,
@@ -129,8 +128,8 @@ def test_lift_keeps_the_keyframe_ray_at_the_relief_height():
     assert np.abs(np.cross(L, X)).max() < 1e-12  # the same ray (both from the camera centre)
     assert np.all(np.einsum("ij,ij->i", L, X) > 0)
     assert L @ N0 == pytest.approx(1.5 - h, abs=1e-12)
-    assert on_plane(PLANE, L) == pytest.approx(X, abs=1e-12)  # on_plane inverts lift
-    assert rel.lift(on_plane(PLANE, L)) == pytest.approx(L, abs=1e-12)
+    assert PLANE.intersect(L) == pytest.approx(X, abs=1e-12)  # the plane's intersection inverts lift
+    assert rel.lift(PLANE.intersect(L)) == pytest.approx(L, abs=1e-12)
     # zero heights leave the points where they are
     assert Relief.flat(PLANE, X).lift(X) == pytest.approx(X, abs=1e-12)
 
@@ -516,7 +515,7 @@ def test_track_with_relief_sends_the_left_keyframe_again_lifted(rolling_drive):
     fine = left.levels[0]
     assert not fine.plane_m.any()
     assert fine.points.X == pytest.approx(
-        left.relief.lift(on_plane(left.plane, before.levels[0].points.X)), abs=1e-12)
+        left.relief.lift(left.plane.intersect(before.levels[0].points.X)), abs=1e-12)
     assert len(left.levels) == len(before.levels)
     assert all(a is b for a, b in zip(left.levels[1:], before.levels[1:]))
     # the new keyframe: the relief carried (its shape only), every level lifted onto it
@@ -525,7 +524,7 @@ def test_track_with_relief_sends_the_left_keyframe_again_lifted(rolling_drive):
         assert not level.plane_m.any()
         X = level.points.X
         assert X @ new.plane.normal == pytest.approx(
-            new.plane.distance - new.relief.heights(on_plane(new.plane, X)), abs=1e-9)
+            new.plane.distance - new.relief.heights(new.plane.intersect(X)), abs=1e-9)
     # the final rotation against the ground truth, with and without the relief
     _, gt = read_tum(rolling_drive / "groundtruth.tum")
     plain, plain_keys = run(rolling_drive, relief=False)

@@ -104,6 +104,14 @@ class Relief:
         nx, ny = (int(np.ceil((hi[k] - lo[k]) / cell - 1e-9)) + 1 for k in (0, 1))
         return cls(plane, (float(lo[0]), float(lo[1])), cell, np.zeros((max(ny, 2), max(nx, 2))))
 
+    def vertices(self) -> np.ndarray:
+        """(ny nx, 2): each vertex's position along the plane's (right, forward) axes, m,
+        in the order of ``h.ravel()``."""
+        ny, nx = self.h.shape
+        j, i = np.mgrid[0:ny, 0:nx]
+        return np.column_stack([self.origin[0] + self.cell * i.ravel(),
+                                self.origin[1] + self.cell * j.ravel()])
+
     def weights(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Bilinear blend at points ``X`` (N, 3) (their position along the plane): vertex
         indices (N, 4) into ``h.ravel()`` (the cell's corners, first row then second) and
@@ -139,11 +147,6 @@ class Relief:
         return X * ((self.plane.distance - self.heights(X)) / (X @ self.plane.normal))[:, None]
 
 
-def on_plane(plane: Plane, X: np.ndarray) -> np.ndarray:
-    """Points ``X`` (N, 3) moved along their rays onto ``plane``."""
-    return X * (plane.distance / (X @ plane.normal))[:, None]
-
-
 def carried(relief: Relief, cur_from_key: np.ndarray, plane: Plane, X: np.ndarray) -> Relief:
     """``relief`` (of a keyframe) seen from a new keyframe at ``cur_from_key`` (4x4): a
     relief on the new keyframe's ``plane`` (its camera) over its points ``X`` (N, 3, on that
@@ -153,9 +156,8 @@ def carried(relief: Relief, cur_from_key: np.ndarray, plane: Plane, X: np.ndarra
     new = Relief.flat(plane, X[::step])  # (points beyond a sample's extent: the edge heights)
     ny, nx = new.h.shape
     ax = plane_axes(plane)
-    j, i = np.mgrid[0:ny, 0:nx]
-    P = (plane.distance * plane.normal + (new.origin[0] + i.ravel() * new.cell)[:, None] * ax[0]
-         + (new.origin[1] + j.ravel() * new.cell)[:, None] * ax[1])  # vertices, new camera
+    V = new.vertices()
+    P = plane.distance * plane.normal + V @ ax  # the vertices, new camera
     R, t = cur_from_key[:3, :3], cur_from_key[:3, 3]
     n0, d0 = relief.plane.normal, relief.plane.distance
     Q = (P - t) @ R  # in the old keyframe's camera
@@ -167,15 +169,13 @@ def carried(relief: Relief, cur_from_key: np.ndarray, plane: Plane, X: np.ndarra
     xy = X[::step] @ ax.T
     A = np.column_stack([np.ones(len(xy)), xy])
     coef = np.linalg.lstsq(A, new.heights(X[::step]), rcond=None)[0]
-    vx = new.origin[0] + i.ravel() * new.cell
-    vy = new.origin[1] + j.ravel() * new.cell
-    flat = coef[0] + coef[1] * vx + coef[2] * vy
+    flat = coef[0] + V @ coef[1:]
     return replace(new, h=new.h - flat.reshape(ny, nx))
 
 
 def lifted_levels(levels: tuple[KeyLevel, ...], relief: Relief) -> tuple[KeyLevel, ...]:
     """A keyframe's levels (points on ``relief.plane``) with every point lifted onto the relief."""
-    return tuple(KeyLevel.from_points(replace(kl.points, X=relief.lift(on_plane(relief.plane, kl.points.X))))
+    return tuple(KeyLevel.from_points(replace(kl.points, X=relief.lift(relief.plane.intersect(kl.points.X))))
                  for kl in levels)
 
 
@@ -206,9 +206,7 @@ def _prior(relief: Relief, X: np.ndarray, idx: np.ndarray, bw: np.ndarray) -> np
     """
     ny, nx = relief.h.shape
     V = ny * nx
-    j, i = np.mgrid[0:ny, 0:nx]
-    C = np.column_stack([np.ones(V), relief.origin[0] + relief.cell * i.ravel(),
-                         relief.origin[1] + relief.cell * j.ravel()])
+    C = np.column_stack([np.ones(V), relief.vertices()])
     Cp = np.linalg.solve(C.T @ C, C.T)  # (3, V): coefficients of the heights' best-fit plane
     Q = np.eye(V) - C @ Cp
     prior = Q.T @ Q / HEIGHT_SIGMA ** 2 + _curvature_normal(ny, nx) / CURVATURE_SIGMA ** 2
@@ -248,7 +246,7 @@ def solve_relief(level: KeyLevel, plane: Plane, image: np.ndarray,
     iterations = ITERATIONS if iterations is None else iterations
     pts = level.points
     step = max(1, len(pts) // (SAMPLE_POINTS if sample_points is None else sample_points))
-    X0 = on_plane(plane, pts.X[::step])
+    X0 = plane.intersect(pts.X[::step])  # (the points' rays onto the plane)
     I_key = pts.intensity[::step].astype(np.float64)
     relief = Relief.flat(plane, X0, cell) if start is None else start
     ny, nx = relief.h.shape
@@ -354,7 +352,7 @@ def refine_pose_and_relief(level: KeyLevel, plane: Plane, image: np.ndarray,
         relief, T, gain, bias = solve_relief(level, plane, image, est.cur_from_key, start=start,
                                              gain=est.gain, bias=est.bias, options=options)
     except (ValueError, np.linalg.LinAlgError):  # degenerate points (e.g. all on one line)
-        return est, Relief.flat(plane, on_plane(plane, level.points.X)), None
+        return est, Relief.flat(plane, plane.intersect(level.points.X)), None
     if not relief.significant:
         return est, relief, None
     lifted, = lifted_levels((level,), relief)
