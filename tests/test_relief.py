@@ -200,6 +200,39 @@ def waves_gradient(u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return gx, gy
 
 
+def finite_difference_case(cam, T: np.ndarray, uv: np.ndarray, h: np.ndarray,
+                           bounds: tuple[float, float] | None = None):
+    """Points of the keyframe pixels ``uv`` on PLANE at heights ``h`` seen from ``cam`` at
+    ``T``: central differences (7, N) of the analytic image ``waves`` at their projections
+    (steps 1e-5 m / rad; rows: the 6 twist components of ``exp(delta^) T``, then the height),
+    and ``(Xc, u, v, dXc_dh)`` at the unperturbed pose. Every evaluation is in front of the
+    camera and, with ``bounds`` (lo, hi), inside ``lo < u, v < hi``."""
+    X0 = PLANE.intersect(cam.rays(uv))
+    rays = X0 / X0[:, 2:3]
+    dX_dh = -rays / (rays @ N0)[:, None]  # along the ray, per metre of height
+
+    def intensity(xi: np.ndarray, dh: float = 0.0) -> np.ndarray:
+        M = se3_exp(xi) @ T
+        X = X0 + dX_dh * (h + dh)[:, None]
+        u, v, front = project_in_front(cam, X @ M[:3, :3].T + M[:3, 3])
+        assert front.all()
+        if bounds is not None:
+            lo, hi = bounds
+            assert u.min() > lo and u.max() < hi and v.min() > lo and v.max() < hi
+        return waves(u, v)
+
+    fd = np.empty((7, len(X0)))
+    eps = 1e-5
+    for k in range(6):
+        d = np.zeros(6)
+        d[k] = eps
+        fd[k] = (intensity(d) - intensity(-d)) / (2 * eps)
+    fd[6] = (intensity(np.zeros(6), eps) - intensity(np.zeros(6), -eps)) / (2 * eps)
+    Xc = (X0 + dX_dh * h[:, None]) @ T[:3, :3].T + T[:3, 3]
+    u, v, _ = project_in_front(cam, Xc)
+    return fd, Xc, u, v, dX_dh @ T[:3, :3].T
+
+
 def test_relief_rows_match_finite_differences():
     """dI/d(twist) and dI/dh of I(pi(exp(delta^) T X(h))) at 12 points against central
     differences of the rendered function (steps 1e-5 m / rad). With the function's own
@@ -214,33 +247,12 @@ def test_relief_rows_match_finite_differences():
     T = make_pose(so3_exp(np.array([0.01, -0.02, 0.015])), np.array([0.05, -0.1, -0.3]))
     rng = np.random.default_rng(3)
     uv = np.column_stack([rng.uniform(10, 118, 12), rng.uniform(50, 118, 12)])
-    X0 = PLANE.intersect(CAM.rays(uv))
-    rays = X0 / X0[:, 2:3]
-    dX_dh = -rays / (rays @ N0)[:, None]  # along the ray, per metre of height
-    h = rng.uniform(-0.05, 0.05, len(X0))
-
-    def intensity(xi: np.ndarray, dh: float = 0.0) -> np.ndarray:
-        M = se3_exp(xi) @ T
-        X = X0 + dX_dh * (h + dh)[:, None]
-        u, v, front = project_in_front(CAM, X @ M[:3, :3].T + M[:3, 3])
-        assert front.all() and u.min() > 2 and u.max() < 125 and v.min() > 2 and v.max() < 125
-        return waves(u, v)
-
-    fd = np.empty((7, len(X0)))
-    eps = 1e-5
-    for k in range(6):
-        d = np.zeros(6)
-        d[k] = eps
-        fd[k] = (intensity(d) - intensity(-d)) / (2 * eps)
-    fd[6] = (intensity(np.zeros(6), eps) - intensity(np.zeros(6), -eps)) / (2 * eps)
-
-    Xc = (X0 + dX_dh * h[:, None]) @ T[:3, :3].T + T[:3, 3]
-    u, v, _ = project_in_front(CAM, Xc)
-    dXc_dh = dX_dh @ T[:3, :3].T
+    h = rng.uniform(-0.05, 0.05, len(uv))
+    fd, Xc, u, v, dXc_dh = finite_difference_case(CAM, T, uv, h, bounds=(2, 125))
     gx, gy = waves_gradient(u, v)
     o, jh = relief_rows(CAM, Xc, gx, gy, dXc_dh)
     exact = np.vstack([o, jh])
-    assert exact.shape == (7, len(X0))
+    assert exact.shape == (7, len(uv))
     assert np.abs(exact - fd).max() <= 1e-6 * np.abs(fd).max()
     sx, sy = sobel_gradient(image)
     o, jh = relief_rows(CAM, Xc, sample_bilinear(sx, u, v)[0], sample_bilinear(sy, u, v)[0], dXc_dh)
@@ -561,31 +573,12 @@ def test_relief_rows_with_lens_distortion_match_finite_differences():
     T = make_pose(so3_exp(np.array([0.01, -0.02, 0.015])), np.array([0.05, -0.1, -0.3]))
     rng = np.random.default_rng(4)
     uv = np.column_stack([rng.uniform(30, 98, 12), rng.uniform(60, 110, 12)])
-    X0 = PLANE.intersect(cam.rays(uv))
-    rays = X0 / X0[:, 2:3]
-    dX_dh = -rays / (rays @ N0)[:, None]
-    h = rng.uniform(-0.05, 0.05, len(X0))
-
-    def intensity(xi: np.ndarray, dh: float = 0.0) -> np.ndarray:
-        M = se3_exp(xi) @ T
-        X = X0 + dX_dh * (h + dh)[:, None]
-        u, v, front = project_in_front(cam, X @ M[:3, :3].T + M[:3, 3])
-        assert front.all()
-        return waves(u, v)
-
-    fd = np.empty((7, len(X0)))
-    eps = 1e-5
-    for k in range(6):
-        d = np.zeros(6)
-        d[k] = eps
-        fd[k] = (intensity(d) - intensity(-d)) / (2 * eps)
-    fd[6] = (intensity(np.zeros(6), eps) - intensity(np.zeros(6), -eps)) / (2 * eps)
-    Xc = (X0 + dX_dh * h[:, None]) @ T[:3, :3].T + T[:3, 3]
-    u, v, _ = project_in_front(cam, Xc)
-    o, jh = relief_rows(cam, Xc, *waves_gradient(u, v), dX_dh @ T[:3, :3].T)
+    h = rng.uniform(-0.05, 0.05, len(uv))
+    fd, Xc, u, v, dXc_dh = finite_difference_case(cam, T, uv, h)
+    o, jh = relief_rows(cam, Xc, *waves_gradient(u, v), dXc_dh)
     assert np.abs(np.vstack([o, jh]) - fd).max() <= 1e-4 * np.abs(fd).max()
     # (a pinhole's rows would be off by the distortion: far more than that)
-    o0, jh0 = relief_rows(CAM, Xc, *waves_gradient(u, v), dX_dh @ T[:3, :3].T)
+    o0, jh0 = relief_rows(CAM, Xc, *waves_gradient(u, v), dXc_dh)
     assert np.abs(np.vstack([o0, jh0]) - fd).max() > 1e-2 * np.abs(fd).max()
 
 
