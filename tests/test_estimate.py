@@ -94,6 +94,33 @@ def test_remap_sampler_flags_points_outside_and_near_the_border(interpolation, r
     assert np.all(vals[~valid] == 0.0)
 
 
+@pytest.mark.parametrize("interpolation,reach", [("linear", (0, 0)), ("cubic", (1, 2))])
+def test_sampler_validity_means_no_pixel_outside_was_weighted(interpolation, reach):
+    """Near the border, with fractions at 0, a hair above 0 and a hair below 1: a valid sample
+    equals the sample under two different borders (it weighted no pixel outside), and every
+    sample whose kernel reach is inside the image is valid."""
+    import cv2
+
+    from monovo_cli.image.sampling import INTERPOLATION, sample_at
+
+    rng = np.random.default_rng(5)
+    img = rng.uniform(0, 255, (40, 50)).astype(np.float32)
+    base = rng.integers(-2, 4, 4000).astype(float)
+    frac = rng.choice([0.0, 1e-6, 1e-3, 1 - 1e-6, 0.5], 4000)
+    u = np.where(rng.random(4000) < 0.5, base + frac, 49.0 - base - frac)
+    v = rng.uniform(-3, 43, 4000)
+    flag = INTERPOLATION[interpolation]
+    grid = _grid(u, v)
+    vals, valid = sample_at(img, grid, len(u), flag)
+    for border in (cv2.BORDER_REPLICATE, cv2.BORDER_REFLECT_101):
+        other = cv2.remap(img, grid, None, flag, borderMode=border).reshape(-1)[:len(u)]
+        assert np.array_equal(vals[valid], other[valid])
+    lo, hi = reach
+    inside = (u >= lo) & (u <= 49 - hi) & (v >= lo) & (v <= 39 - hi)
+    assert valid[inside].all() and inside.sum() > 500
+    assert np.all(vals[~valid] == 0.0) and (~valid).sum() > 500
+
+
 def test_cubic_sampler_beats_bilinear_on_fine_texture():
     """On a band-limited texture with detail down to 3 px, cubic interpolation's error is
     < 1/2 of bilinear interpolation's (the reason it samples the finest level)."""
