@@ -8,6 +8,7 @@ finest level gets, :func:`footprint` how much of an image the model still covers
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import cv2
@@ -41,8 +42,12 @@ class Keyframe:
 def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: Plane,
                    region: tuple[int, int, int, int], world_from_key: np.ndarray,
                    options: TrackOptions, *, mask: np.ndarray | None = None,
-                   pyramid: list[np.ndarray] | None = None) -> Keyframe:
+                   pyramid: list[np.ndarray] | None = None,
+                   surface: Callable[[np.ndarray], Relief] | None = None) -> Keyframe:
     """The ground model of section 10.2.5 on ``image`` (H, W) float32, plane in its camera.
+
+    ``surface``, given the finest level's points (N, 3) on the plane, returns the keyframe's
+    relief (:mod:`monovo_cli.core.relief`): every level's points are then lifted onto it.
 
     Raises TrackingError when the frame has too few observation points.
     """
@@ -59,6 +64,7 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
         raise TrackingError("the ground plane is not in front of the camera over the region")
     levels = []
     m = mask
+    relief = None
     for lv in range(n_levels):
         cam = camera.scaled(lv)
         if lv > 0 and m is not None:
@@ -69,11 +75,16 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
                             mask=m, spline=lv == 0 and spline)
         if lv == 0:
             require_points(pts, minimum=options.min_points, threshold=threshold)
+            if surface is not None:
+                relief = surface(pts.X)
+        if relief is not None:
+            pts = replace(pts, X=relief.lift(pts.X))
         levels.append(KeyLevel.from_points(pts))
     # Coarse levels with too few points cannot constrain 6 DoF: drop them.
     while len(levels) > 1 and len(levels[-1].points) < 30:
         levels.pop()
-    return Keyframe(index, np.array(world_from_key), plane, corners, tuple(levels), sigma, threshold)
+    return Keyframe(index, np.array(world_from_key), plane, corners, tuple(levels), sigma,
+                    threshold, relief)
 
 
 def _one_point_per(pixels: int, camera: PinholeCamera) -> int:

@@ -28,6 +28,7 @@ from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, replace
 from enum import Enum
+from functools import partial
 
 import numpy as np
 
@@ -37,7 +38,7 @@ from monovo_cli.core.keyframe import Keyframe, build_keyframe, footprint
 from monovo_cli.core.motion_covariance import MotionCovariance
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane_tracker import PlaneTracker
-from monovo_cli.core.relief import Relief, carried, lifted_levels, refine_pose_and_relief
+from monovo_cli.core.relief import Relief, carried, refine_pose_and_relief
 from monovo_cli.core.robust import inlier_fraction
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import TrackingError
@@ -350,14 +351,13 @@ class Odometry:
         """Anchor a new ground model on this frame (``plane`` in its camera, ``cov`` its
         covariance, None: the prior's; ``relief``: the old keyframe's relief and this frame's
         pose from it, carried onto the new points); False if the frame cannot carry one."""
+        surface = None if relief is None else partial(carried, *relief, plane)
         try:
             key = build_keyframe(index, image, self.camera, plane, self.region,
-                                 world_from_cur, self.options, mask=self.mask, pyramid=pyr)
+                                 world_from_cur, self.options, mask=self.mask, pyramid=pyr,
+                                 surface=surface)
         except TrackingError:
             return False
-        if relief is not None:
-            new = carried(*relief, plane, key.levels[0].points.X)
-            key = replace(key, levels=lifted_levels(key.levels, new), relief=new)
         self._key = key
         self._plane.anchored(cov)
         self._cur_from_key_prev = np.eye(4)
