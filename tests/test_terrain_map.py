@@ -67,6 +67,37 @@ def test_points_on_the_planes_have_zero_height_and_a_rebuilt_keyframe_replaces_i
     assert np.allclose(h[:50], 0.0, atol=1e-12) and np.allclose(h[50:], 0.01, atol=1e-12)
 
 
+def test_smoothing_puts_a_keyframe_on_the_plane_its_successors_found():
+    """Keyframe 0 was anchored on a plane 4 cm too far (init.yaml's distance, a camera at a
+    crest); keyframe 1's MAP moved the carried distance 3 cm closer and keyframe 2's 2 cm
+    more. With smoother gains of 1 and 0.5 (PlaneTracker.successor's), delta_1 = 0.5 * -0.02
+    and delta_0 = 1 * (-0.03 + delta_1) = -0.04: keyframe 0's points land on the plane at
+    1.50 m, a point 10 cm off its plane (relief) keeps its height, and the ground frame is
+    that plane; without smoothing nothing moves, and the last keyframe never does."""
+    from monovo_cli.core.plane_belief import PlaneLink, smoothed_corrections
+
+    far = Plane(N0, 1.54)
+    rays = np.column_stack([np.linspace(-0.5, 0.5, 40), np.linspace(0.1, 0.6, 40), np.ones(40)])
+    X0 = far.intersect(rays)
+    X0[:5] *= ((far.distance - 0.1) / (X0[:5] @ N0))[:, None]  # 10 cm above the plane
+    links = [None, PlaneLink(np.eye(3), np.array([-0.03, 0.0, 0.0])),
+             PlaneLink(0.5 * np.eye(3), np.array([-0.02, 0.0, 0.0]))]
+    assert [d[0] for d in smoothed_corrections(links)] == pytest.approx([-0.04, -0.01, 0.0])
+    assert smoothed_corrections([None, None, links[2]])[0] == pytest.approx(np.zeros(3))
+    for smooth, want in ((True, 1.50), (False, 1.54)):
+        tmap = TerrainMap(far, smooth=smooth)
+        for k, link in enumerate(links):
+            key = fake_key(k, X0 if k == 0 else Plane(N0, 1.5).intersect(rays))
+            key.link = link
+            key.plane = far if k == 0 else Plane(N0, 1.5)
+            tmap.add(key)
+        X, _ = tmap.points()
+        assert X[5:40] @ N0 == pytest.approx(np.full(35, want), abs=1e-12)
+        assert X[:5] @ N0 == pytest.approx(np.full(5, want - 0.1), abs=1e-12)
+        assert X[80:] @ N0 == pytest.approx(np.full(40, 1.5), abs=1e-12)  # the last keyframe
+        assert tmap.ground_points()[5:40, 2] == pytest.approx(np.zeros(35), abs=1e-12)
+
+
 def test_height_grid_by_hand():
     # looking straight down from 2 m (normal = optical axis): ground frame right = x,
     # forward = -y (image up), height = 2 - z

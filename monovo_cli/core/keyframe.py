@@ -17,6 +17,7 @@ import numpy as np
 from monovo_cli.core.estimate import KeyLevel
 from monovo_cli.core.ground import default_threshold, rectangle_corners, require_points, select_points
 from monovo_cli.core.options import TrackOptions
+from monovo_cli.core.plane_belief import PlaneLink
 from monovo_cli.core.relief import Relief
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
@@ -37,6 +38,7 @@ class Keyframe:
     noise_sigma: float
     threshold: float
     relief: Relief | None = None  # the points' heights off the plane (None: on it)
+    link: PlaneLink | None = None  # how its plane corrected the one carried from the last keyframe
 
 
 def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: Plane,

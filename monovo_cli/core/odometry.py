@@ -37,6 +37,7 @@ from monovo_cli.core.estimate import Estimate, coarse_search, estimate_motion
 from monovo_cli.core.keyframe import Keyframe, build_keyframe, footprint
 from monovo_cli.core.motion_covariance import MotionCovariance
 from monovo_cli.core.options import TrackOptions
+from monovo_cli.core.plane_belief import PlaneLink
 from monovo_cli.core.plane_tracker import PlaneTracker
 from monovo_cli.core.relief import Relief, carried, refine_pose_and_relief
 from monovo_cli.core.robust import inlier_fraction
@@ -222,12 +223,12 @@ class Odometry:
                 self.retired.append(replace(key, levels=(lifted,) + key.levels[1:], relief=relief))
         cur_from_key = orthonormalize(est.cur_from_key)
         gain, bias = est.gain, est.bias
-        plane_cur, plane_cov = key.plane.in_frame(cur_from_key), None
+        plane_cur, plane_cov, link = key.plane.in_frame(cur_from_key), None, None
         if reanchor and key.index != index:
             # The next keyframe's plane (in this camera); the pose keeps the fixed-plane
             # estimate, whose error is smaller (the free normal adds variance to the joint
             # solution's motion).
-            plane_cur, plane_cov, gain, bias = self._plane.successor(
+            plane_cur, plane_cov, gain, bias, link = self._plane.successor(
                 key, pyr[0], est, cur_from_key, gain, bias, self.options.estimator)
         world_from_cur = orthonormalize(key.world_from_key @ se3_inv(cur_from_key))
         prev_from_cur = orthonormalize(se3_inv(self._world_from_prev) @ world_from_cur)
@@ -248,7 +249,7 @@ class Odometry:
         if self._key_msd is None:
             self._key_msd = est.msd
         if reanchor and self._reanchor(index, image, pyr, world_from_cur, plane_cur, plane_cov,
-                                       None if relief is None else (relief, cur_from_key)):
+                                       None if relief is None else (relief, cur_from_key), link):
             status = FrameStatus.REANCHORED
         elif not recovering:  # (a recovering tracker whose new keyframe failed stays so)
             self._state = OdometryState.TRACKING
@@ -347,10 +348,12 @@ class Odometry:
 
     def _reanchor(self, index: int, image: np.ndarray, pyr: list[np.ndarray],
                   world_from_cur: np.ndarray, plane: Plane, cov: np.ndarray | None = None,
-                  relief: tuple[Relief, np.ndarray] | None = None) -> bool:
+                  relief: tuple[Relief, np.ndarray] | None = None,
+                  link: PlaneLink | None = None) -> bool:
         """Anchor a new ground model on this frame (``plane`` in its camera, ``cov`` its
         covariance, None: the prior's; ``relief``: the old keyframe's relief and this frame's
-        pose from it, carried onto the new points); False if the frame cannot carry one."""
+        pose from it, carried onto the new points; ``link``: the plane's link to the old
+        keyframe's, for smoothing); False if the frame cannot carry one."""
         surface = None if relief is None else partial(carried, *relief, plane)
         try:
             key = build_keyframe(index, image, self.camera, plane, self.region,
@@ -358,7 +361,7 @@ class Odometry:
                                  surface=surface)
         except TrackingError:
             return False
-        self._key = key
+        self._key = replace(key, link=link)
         self._plane.anchored(cov)
         self._cur_from_key_prev = np.eye(4)
         self._motion_cov.anchored()

@@ -171,6 +171,18 @@ def propagate(plane: Plane, covariance: np.ndarray, cur_from_key: np.ndarray,
     ``exp(-xi)`` in the keyframe (``d -= n . v``, ``n += n x w``). Plane and motion errors are
     taken as independent.
     """
+    cur, J = propagation_jacobian(plane, cur_from_key)
+    C = np.zeros((9, 9))
+    C[:3, :3] = covariance
+    C[3:, 3:] = motion_covariance
+    P = J @ C @ J.T
+    return PlaneBelief(cur, np.linalg.inv(0.5 * (P + P.T)))
+
+
+def propagation_jacobian(plane: Plane, cur_from_key: np.ndarray) -> tuple[Plane, np.ndarray]:
+    """``plane`` (keyframe camera) in the current camera and the Jacobian (3, 9) of its chart
+    coordinates there with respect to the keyframe chart's (3) and the twist xi (6) of
+    :func:`propagate`."""
     R, t = cur_from_key[:3, :3], cur_from_key[:3, 3]
     cur = plane.in_frame(cur_from_key)
     n = plane.normal
@@ -184,11 +196,34 @@ def propagate(plane: Plane, covariance: np.ndarray, cur_from_key: np.ndarray,
     J[0, 6:9] = t @ RN
     J[1:, 1:3] = Ec.T @ REk
     J[1:, 6:9] = Ec.T @ RN
-    C = np.zeros((9, 9))
-    C[:3, :3] = covariance
-    C[3:, 3:] = motion_covariance
-    P = J @ C @ J.T
-    return PlaneBelief(cur, np.linalg.inv(0.5 * (P + P.T)))
+    return cur, J
+
+
+@dataclass(frozen=True)
+class PlaneLink:
+    """How a keyframe's plane (the MAP at its re-anchor) corrected the plane carried to it
+    from the previous keyframe, for smoothing the previous one's in hindsight
+    (Rauch-Tung-Striebel): ``innovation`` (3,) the MAP's chart coordinates at the carried
+    plane, ``gain`` (3, 3) the previous keyframe's smoother gain ``P_k J^T P_pred^-1`` (P_k its
+    plane's covariance, J the plane block of :func:`propagation_jacobian`, P_pred the carried
+    plane's covariance with the process noise)."""
+
+    gain: np.ndarray
+    innovation: np.ndarray
+
+
+def smoothed_corrections(links: Sequence[PlaneLink | None]) -> list[np.ndarray]:
+    """The backward pass of the smoother over a chain of keyframes, oldest first: ``links[k]``
+    links keyframe k to its predecessor (None: a chain begins there, e.g. frame 0 or a
+    re-initialisation). Returns each keyframe's correction (3,) in its plane's chart: the
+    last's is zero (it has no successor), then ``delta_k = gain_{k+1} (innovation_{k+1} +
+    delta_{k+1})`` (the successor's correction taken as one at its carried plane: first order)."""
+    out = [np.zeros(3) for _ in links]
+    for k in range(len(links) - 2, -1, -1):
+        link = links[k + 1]
+        if link is not None:
+            out[k] = link.gain @ (link.innovation + out[k + 1])
+    return out
 
 
 def carried_plane(key_plane: Plane, key_covariance: np.ndarray, cur_from_key: np.ndarray,

@@ -13,6 +13,8 @@ mounting prior.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from monovo_cli.core.estimate import Estimate, EstimatorOptions, estimate_motion
@@ -26,6 +28,7 @@ from monovo_cli.core.plane_belief import (
     PLANE_SETTLED_DEG,
     TILT_CHANGE_DEG,
     PlaneBelief,
+    PlaneLink,
     carried_plane,
     default_sigmas,
     exact_covariance,
@@ -33,8 +36,10 @@ from monovo_cli.core.plane_belief import (
     keyframe_plane,
     measured_tilt_std_deg,
     mounting_prior,
+    propagation_jacobian,
     tilt_chi2,
     tilt_std_deg,
+    to_chart,
     transported,
 )
 from monovo_cli.core.plane_fit import refine_plane_and_motion
@@ -98,8 +103,9 @@ class PlaneTracker:
         try:
             belief = fuse([PlaneBelief.from_covariance(key.plane, self.covariance), fit.measured])
             cov = belief.covariance
-            new_key = build_keyframe(key.index, key_image, camera, belief.plane, region,
-                                     key.world_from_key, options, mask=mask)
+            new_key = replace(build_keyframe(key.index, key_image, camera, belief.plane, region,
+                                             key.world_from_key, options, mask=mask),
+                              link=key.link)
         except (ValueError, np.linalg.LinAlgError, TrackingError):
             return None
         new = estimate_motion(new_key.levels, pyramid, est.cur_from_key, options=options.estimator,
@@ -108,25 +114,31 @@ class PlaneTracker:
 
     def successor(self, key: Keyframe, image: np.ndarray, est: Estimate,
                   cur_from_key: np.ndarray, gain: float, bias: float,
-                  options: EstimatorOptions) -> tuple[Plane, np.ndarray | None, float, float]:
+                  options: EstimatorOptions
+                  ) -> tuple[Plane, np.ndarray | None, float, float, PlaneLink | None]:
         """The plane of a keyframe anchored on the current frame (finest level ``image``,
-        ``cur_from_key`` its pose): ``(plane in its camera, covariance, gain, bias)``, the MAP
-        of the plane carried by the motion, the joint refinement's normal and the mounting
-        prior (with DISTANCE_CHANGE and TILT_CHANGE_DEG of process noise on the carried
-        plane); the brightness
-        model is the refinement's. If the beliefs cannot be combined
-        the carried plane comes back with covariance None."""
+        ``cur_from_key`` its pose): ``(plane in its camera, covariance, gain, bias, link)``,
+        the MAP of the plane carried by the motion, the joint refinement's normal and the
+        mounting prior (with DISTANCE_CHANGE and TILT_CHANGE_DEG of process noise on the
+        carried plane); the brightness model is the refinement's; ``link`` what smoothing
+        ``key``'s plane in hindsight needs (:class:`~monovo_cli.core.plane_belief.PlaneLink`).
+        If the beliefs cannot be combined the carried plane comes back with covariance None
+        and no link."""
         fit = refine_plane_and_motion(key.levels[0].points, image, cur_from_key, key.plane,
                                       gain=gain, bias=bias, options=options, iterations=4)
         measured = None if fit.measured is None else \
             transported(fit.measured, orthonormalize(fit.cur_from_key))
         distance_change = DISTANCE_CHANGE * key.plane.distance
+        noise = np.diag([distance_change ** 2] + [np.radians(TILT_CHANGE_DEG) ** 2] * 2)
         try:
             carried = carried_plane(key.plane, self.covariance, cur_from_key, est.covariance)
             belief = keyframe_plane(carried, measured=measured, prior=self.mounting,
                                     distance_change=distance_change,
                                     tilt_change=np.radians(TILT_CHANGE_DEG))
+            J = propagation_jacobian(key.plane, cur_from_key)[1][:, :3]
+            link = PlaneLink(self.covariance @ J.T @ np.linalg.inv(carried.covariance + noise),
+                             to_chart(carried.plane, belief.plane))
         except (ValueError, np.linalg.LinAlgError):
-            return key.plane.in_frame(cur_from_key), None, fit.gain, fit.bias
+            return key.plane.in_frame(cur_from_key), None, fit.gain, fit.bias, None
         self.consistency.reanchored(carried, belief, self.mounting, distance_change)
-        return belief.plane, belief.covariance, fit.gain, fit.bias
+        return belief.plane, belief.covariance, fit.gain, fit.bias, link
