@@ -179,3 +179,37 @@ def test_depth_refinement_finds_the_ground_a_wrong_plane_missed():
     assert np.sqrt(np.mean(height(pts.X[ok]) ** 2)) == pytest.approx(0.02, abs=1e-6)
     assert np.sqrt(np.mean(height(res.X[ok]) ** 2)) < 0.007
     assert np.sqrt(np.mean(height(res.X[res.measured]) ** 2)) < 0.01
+
+
+def test_depth_sweep_puts_points_the_relief_misplaced_back_on_the_ground():
+    """Two views of flat ground 0.4 m apart, exact poses; a fifth of the keyframe's points
+    sit 8 cm above the ground (a relief that missed the ground there, as it misses a rock).
+    The sweep moves most of them back to within 1 cm and leaves the others where they are
+    (measured: 57 % moved, to 0.79 cm RMS; 0.06 % of the others moved). The rest are points
+    whose texture runs along their epipolar line: no height is clearly better there."""
+    from monovo_cli.core.depth import sweep_depths
+    from monovo_cli.core.ground import select_points
+    from monovo_cli.geometry.lie import se3_inv
+    from monovo_cli.synth.motion import camera_mount
+    from monovo_cli.synth.render import GroundRenderer, default_camera, finish_frame, ground_in_camera
+    from monovo_cli.synth.texture import GroundTexture, procedural_texture
+
+    cam = default_camera(256, 256)
+    g0 = camera_mount(40.0)
+    g1 = make_pose(np.eye(3), np.array([0.4, 0.05, 0.0])) @ g0
+    rng = np.random.default_rng(3)
+    ren = GroundRenderer(cam, GroundTexture(procedural_texture(512, 2), 1.2 / cam.fx), supersample=2)
+    img0, img1 = (finish_frame(ren.render(g), rng, 10.0).astype(np.float32) for g in (g0, g1))
+    n, d = ground_in_camera(g0)
+    ground = Plane(n, d)
+    corners = np.array(ground.intersect(cam.rays(np.array([[0.0, 40], [255, 40], [255, 255], [0, 255]]))))
+    X = select_points(img0, cam, ground, corners, level=0, threshold=3.0, max_points=4000).X
+    off = rng.random(len(X)) < 0.2
+    Xw = X.copy()
+    Xw[off] *= ((d - 0.08) / (X[off] @ n))[:, None]  # 8 cm up their rays
+    height = lambda P: d - P @ n  # noqa: E731 (above the true ground, m)
+    Xs, moved = sweep_depths(cam, ground, Xw, img0, img1, se3_inv(g1) @ g0)
+    assert np.allclose(height(Xw[off]), 0.08) and off.sum() > 500
+    assert moved[off].mean() > 0.5 and moved[~off].mean() < 0.01
+    assert np.sqrt(np.mean(height(Xs[off & moved]) ** 2)) < 0.01
+    assert np.array_equal(Xs[~moved], Xw[~moved])

@@ -20,6 +20,17 @@ a straight-line fit of the two images' intensities at the planar positions.
 This is the semi-dense direct methods' depth filter reduced to one update per keyframe; it
 feeds the terrain products (:mod:`monovo_cli.core.terrain_map`), not yet the tracking,
 whose warp is still the plane's homography.
+
+:func:`sweep_depths` is the terrain products' default: the ground is already on the
+keyframe's relief (:mod:`monovo_cli.core.relief`), and what it misses are small objects, a
+rock 5-20 cm high that a 0.4 m grid does not see, too far from the relief for one
+Gauss-Newton step from it under a prior toward it. So it searches instead: each point's
+height along its ray over a range above and below where it is (a plane sweep), matched by
+its 3 x 3 patch facing the camera, and moves it only where the images say so clearly: the
+patch's squared difference drops by more than SWEEP_DROP noise variances, the best match is
+as good as noise allows (below SWEEP_MATCH noise variances per pixel) and it is not at the
+range's end. Only points whose patch disagrees by SWEEP_DROP noise variances where they are
+can move, so only those are searched (on the rocks drive ~5 %).
 """
 
 from __future__ import annotations
@@ -39,6 +50,9 @@ HEIGHT_SIGMA = 0.05  # m: the prior's std of a point's height off its keyframe p
 HUBER_K = 1.345
 MAX_STEP = 0.5  # a step moves a point by at most this many sigma_z
 PATCH_RADIUS = 1  # a point is matched by its 3 x 3 patch (with the keyframe image)
+SWEEP_HEIGHTS = (-0.10, 0.30, 0.01)  # m: sweep_depths' heights off the point, (lowest, highest, step)
+SWEEP_DROP = 25.0  # noise variances the patch's squared difference must drop by to move a point
+SWEEP_MATCH = 2.0  # and at most this many noise variances per patch pixel at the best height
 
 
 @dataclass(frozen=True)
@@ -122,3 +136,64 @@ def refine_depths(camera: PinholeCamera, plane: Plane, X: np.ndarray, intensity:
         z = z + np.where(inside, step, 0.0)
     std = 1.0 / np.sqrt(info + 1.0 / sigma_z ** 2)
     return Depths(rays * z[:, None], std, inside)
+
+
+def sweep_depths(camera: PinholeCamera, plane: Plane, X: np.ndarray, key_image: np.ndarray,
+                 image: np.ndarray, cur_from_key: np.ndarray, *,
+                 heights: tuple[float, float, float] = SWEEP_HEIGHTS, drop: float = SWEEP_DROP,
+                 match: float = SWEEP_MATCH) -> tuple[np.ndarray, np.ndarray]:
+    """Points ``X`` (N, 3) of a keyframe (its camera, normal ``plane.normal``; on its relief)
+    moved along their rays by the height (``heights``: lowest, highest, step, m along the
+    normal, up positive) where the keyframe's ``key_image`` and the current ``image`` agree
+    (pose ``cur_from_key``), where the images say so clearly (module docstring). A pinhole
+    camera without distortion. Returns ``(X moved (N, 3), moved (N,) bool)``."""
+    X = np.asarray(X, dtype=np.float64)
+    n = len(X)
+    moved = np.zeros(n, bool)
+    if n == 0:
+        return X.copy(), moved
+    R, t = cur_from_key[:3, :3], cur_from_key[:3, 3]
+    u0 = camera.fx * X[:, 0] / X[:, 2] + camera.cx
+    v0 = camera.fy * X[:, 1] / X[:, 2] + camera.cy
+    offs = [(dx, dy) for dy in (-1, 0, 1) for dx in (-1, 0, 1)]
+    I_key = np.stack([sample_bilinear(key_image, u0 + dx, v0 + dy)[0] for dx, dy in offs])
+    # each patch pixel's ray turned into the current camera (a patch facing the camera: every
+    # pixel at the point's depth z, so its position there is z Rr + t)
+    Rr = np.stack([np.column_stack([(u0 + dx - camera.cx) / camera.fx,
+                                    (v0 + dy - camera.cy) / camera.fy, np.ones(n)]) @ R.T
+                   for dx, dy in offs])  # (9, N, 3)
+    nX = X @ plane.normal  # the points' distances along the normal (> 0: in front)
+
+    def sample(z: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        Xc = (Rr[:, idx] * z[None, :, None] + t).reshape(-1, 3)
+        u, v, front = project_in_front(camera, Xc)
+        vals, ok = sample_bilinear(image, u, v)
+        m = len(idx)
+        return vals.reshape(9, m).astype(np.float64), (ok & front).reshape(9, m).all(axis=0)
+
+    everyone = np.arange(n)
+    vals0, ok0 = sample(X[:, 2], everyone)
+    if np.count_nonzero(ok0) < 20:
+        return X.copy(), moved
+    A = np.column_stack([I_key[:, ok0].ravel(), np.ones(9 * np.count_nonzero(ok0))])
+    gain, bias = np.linalg.lstsq(A, vals0[:, ok0].ravel(), rcond=None)[0]
+    ref = gain * I_key + bias
+    sigma2 = max(float(mad_scale((vals0[4] - ref[4]).astype(np.float32), ok0)) ** 2, 1e-6)
+    cost0 = np.where(ok0, ((vals0 - ref) ** 2).sum(axis=0), 0.0)
+    idx = np.nonzero(ok0 & (cost0 > drop * sigma2))[0]  # only these can drop by that much
+    if not len(idx):
+        return X.copy(), moved
+    lo, hi, step = heights
+    hs = np.arange(lo, hi + 0.5 * step, step)
+    costs = np.full((len(hs), len(idx)), np.inf)
+    for a, dh in enumerate(hs):
+        vals, ok = sample(X[idx, 2] * (nX[idx] - dh) / nX[idx], idx)
+        costs[a, ok] = ((vals[:, ok] - ref[:, idx[ok]]) ** 2).sum(axis=0)
+    best = np.argmin(costs, axis=0)
+    c_best = costs[best, np.arange(len(idx))]
+    ok = (cost0[idx] - c_best > drop * sigma2) & (c_best < 9 * match * sigma2) \
+        & (best > 0) & (best < len(hs) - 1)
+    moved[idx[ok]] = True
+    dh = np.zeros(n)
+    dh[idx[ok]] = hs[best[ok]]
+    return X * ((nX - dh) / nX)[:, None], moved

@@ -15,11 +15,14 @@ keyframe planes, with the filter's own covariances, process noise and innovation
 the trajectory stay the filter's, as streamed. (On the rolling terrain drive the first
 keyframes' points sit 4.4 and 3.8 cm low without it: a diagnostic run.)
 
-Given the images, a keyframe's points are
-moved along their rays to the depths its successor's image (or the last frame's) agrees
-with (:func:`~monovo_cli.core.depth.refine_depths`) when it is left, if ``refine`` (off by
-default: with the planar tracker's poses it does not improve the map yet, docs/algorithm.md
-section "Terrain"). Heights are measured
+**What the relief misses.** When a keyframe is left, its points are searched along their
+rays against its successor's image (or the last frame's) at the successor's pose
+(``refine="sweep"``, the default: :func:`~monovo_cli.core.depth.sweep_depths`): a point
+whose patch clearly matches at another height (a rock the 0.4 m relief does not see) moves
+there; the rest stay on the relief. ``refine="newton"`` is the Gauss-Newton per-point
+refinement under a prior toward the relief (:func:`~monovo_cli.core.depth.refine_depths`;
+noisier over whole drives, docs/algorithm.md section "The terrain products"), None keeps
+every point where tracking put it. Heights are measured
 in the **ground frame** of the first keyframe's smoothed plane (frame 0's ground as tracking
 measured it: init.yaml's plane, or the tilt the first frames corrected it to, smoothed): origin at
 the foot of camera 0 on the plane, ``forward`` camera 0's optical axis projected onto it,
@@ -37,7 +40,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monovo_cli.core.depth import refine_depths
+from monovo_cli.core.depth import refine_depths, sweep_depths
 from monovo_cli.core.keyframe import Keyframe
 from monovo_cli.core.plane_belief import PlaneLink, from_chart, smoothed_corrections
 from monovo_cli.geometry.lie import se3_inv
@@ -93,7 +96,7 @@ class TerrainMap:
     """The keyframes' observation points in the world frame (module docstring)."""
 
     def __init__(self, plane: Plane, points_per_keyframe: int = POINTS_PER_KEYFRAME, *,
-                 refine: bool = False, smooth: bool = True) -> None:
+                 refine: str | None = "sweep", smooth: bool = True) -> None:
         self.plane0 = plane  # (init.yaml's: the ground frame until a keyframe comes)
         self.points_per_keyframe = int(points_per_keyframe)
         self.refine = refine
@@ -154,14 +157,20 @@ class TerrainMap:
 
     def _refine(self, key: Keyframe, image: np.ndarray, cur_from_key: np.ndarray) -> None:
         pts = key.levels[0].points
-        if not self.refine or pts.camera.has_distortion or \
+        if self.refine is None or pts.camera.has_distortion or \
+                (self.refine == "sweep" and self._last_image is None) or \
                 float(np.linalg.norm(cur_from_key[:3, 3])) < 1e-3 * key.plane.distance:
             return  # (no baseline: the images cannot tell depths apart)
         step = self._step(key)
-        d = refine_depths(pts.camera, key.plane, pts.X[::step], pts.intensity[::step], image,
-                          cur_from_key, key_image=self._last_image)
-        self._store(key, d.X)
-        self.refined += int(np.count_nonzero(d.measured))
+        if self.refine == "sweep":
+            X, moved = sweep_depths(pts.camera, key.plane, pts.X[::step], self._last_image,
+                                    image, cur_from_key)
+        else:
+            d = refine_depths(pts.camera, key.plane, pts.X[::step], pts.intensity[::step],
+                              image, cur_from_key, key_image=self._last_image)
+            X, moved = d.X, d.measured
+        self._store(key, X)
+        self.refined += int(np.count_nonzero(moved))
 
     def __len__(self) -> int:
         return sum(len(c.X) for c in self._chunks.values())
