@@ -25,7 +25,8 @@ whose warp is still the plane's homography.
 keyframe's relief (:mod:`monovo_cli.core.relief`), and what it misses are small objects, a
 rock 5-20 cm high that a 0.4 m grid does not see, too far from the relief for one
 Gauss-Newton step from it under a prior toward it. So it searches instead: each point's
-height along its ray over a range above and below where it is (a plane sweep), matched by
+height along its ray over a range above and below where it is (a plane sweep: every third
+step, then single steps around the best), matched by
 its 3 x 3 patch facing the camera, and moves it only where the images say so clearly: the
 patch's squared difference drops by more than SWEEP_DROP noise variances, the best match is
 as good as noise allows (below SWEEP_MATCH noise variances per pixel) and it is not at the
@@ -163,16 +164,14 @@ def sweep_depths(camera: PinholeCamera, plane: Plane, X: np.ndarray, key_image: 
                                     (v0 + dy - camera.cy) / camera.fy, np.ones(n)]) @ R.T
                    for dx, dy in offs])  # (9, N, 3)
     nX = X @ plane.normal  # the points' distances along the normal (> 0: in front)
-
-    def sample(z: np.ndarray, idx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        Xc = (Rr[:, idx] * z[None, :, None] + t).reshape(-1, 3)
+    def sample(z: np.ndarray, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        Xc = (rays * z[None, :, None] + t).reshape(-1, 3)
         u, v, front = project_in_front(camera, Xc)
         vals, ok = sample_bilinear(image, u, v)
-        m = len(idx)
+        m = rays.shape[1]
         return vals.reshape(9, m).astype(np.float64), (ok & front).reshape(9, m).all(axis=0)
 
-    everyone = np.arange(n)
-    vals0, ok0 = sample(X[:, 2], everyone)
+    vals0, ok0 = sample(X[:, 2], Rr)
     if np.count_nonzero(ok0) < 20:
         return X.copy(), moved
     A = np.column_stack([I_key[:, ok0].ravel(), np.ones(9 * np.count_nonzero(ok0))])
@@ -184,16 +183,25 @@ def sweep_depths(camera: PinholeCamera, plane: Plane, X: np.ndarray, key_image: 
     if not len(idx):
         return X.copy(), moved
     lo, hi, step = heights
-    hs = np.arange(lo, hi + 0.5 * step, step)
-    costs = np.full((len(hs), len(idx)), np.inf)
-    for a, dh in enumerate(hs):
-        vals, ok = sample(X[idx, 2] * (nX[idx] - dh) / nX[idx], idx)
-        costs[a, ok] = ((vals[:, ok] - ref[:, idx[ok]]) ** 2).sum(axis=0)
-    best = np.argmin(costs, axis=0)
-    c_best = costs[best, np.arange(len(idx))]
+    rays, ref_i, z_i, nX_i = Rr[:, idx], ref[:, idx], X[idx, 2], nX[idx]
+
+    def cost(dh: np.ndarray) -> np.ndarray:
+        """The candidates' patch costs (m,) raised by ``dh`` (m,) (inf out of view or range)."""
+        vals, ok = sample(z_i * (nX_i - dh) / nX_i, rays)
+        ok &= (dh >= lo - 1e-9) & (dh <= hi + 1e-9)
+        return np.where(ok, ((vals - ref_i) ** 2).sum(axis=0), np.inf)
+
+    # coarse to fine: every 3rd height, then the 2 steps either side of the best one
+    coarse = np.arange(lo, hi + 0.5 * step, 3 * step)
+    best_c = np.argmin([cost(np.full(len(idx), h)) for h in coarse], axis=0)
+    near = coarse[best_c][None, :] + step * np.arange(-2, 3)[:, None]  # (5, m)
+    costs = np.array([cost(h) for h in near])
+    k = np.argmin(costs, axis=0)
+    dh_best = near[k, np.arange(len(idx))]
+    c_best = costs[k, np.arange(len(idx))]
     ok = (cost0[idx] - c_best > drop * sigma2) & (c_best < 9 * match * sigma2) \
-        & (best > 0) & (best < len(hs) - 1)
+        & (dh_best > lo + 0.5 * step) & (dh_best < hi - 0.5 * step)
     moved[idx[ok]] = True
     dh = np.zeros(n)
-    dh[idx[ok]] = hs[best[ok]]
+    dh[idx[ok]] = dh_best[ok]
     return X * ((nX - dh) / nX)[:, None], moved
