@@ -243,10 +243,15 @@ def keyframe_plane(carried: PlaneBelief, *, measured: PlaneBelief | None = None,
     distance and ``tilt_change`` (rad) to each tilt, (b) ``measured`` and (c) ``prior``
     (module docstring)."""
     if distance_change > 0 or tilt_change > 0:
-        P = carried.covariance + np.diag([distance_change ** 2, tilt_change ** 2,
-                                          tilt_change ** 2])
+        P = carried.covariance + process_noise(distance_change, tilt_change)
         carried = PlaneBelief(carried.plane, np.linalg.inv(P))
     return fuse([carried] + [b for b in (measured, prior) if b is not None])
+
+
+def process_noise(distance_change: float, tilt_change: float) -> np.ndarray:
+    """(3, 3) chart covariance of the carried plane's process noise: std ``distance_change``
+    (m) on the distance and ``tilt_change`` (rad) on each tilt."""
+    return np.diag([distance_change ** 2, tilt_change ** 2, tilt_change ** 2])
 
 
 def transported(belief: PlaneBelief, b_from_a: np.ndarray) -> PlaneBelief:

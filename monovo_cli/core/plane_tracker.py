@@ -36,6 +36,7 @@ from monovo_cli.core.plane_belief import (
     keyframe_plane,
     measured_tilt_std_deg,
     mounting_prior,
+    process_noise,
     propagation_jacobian,
     tilt_chi2,
     tilt_std_deg,
@@ -129,14 +130,14 @@ class PlaneTracker:
         measured = None if fit.measured is None else \
             transported(fit.measured, orthonormalize(fit.cur_from_key))
         distance_change = DISTANCE_CHANGE * key.plane.distance
-        noise = np.diag([distance_change ** 2] + [np.radians(TILT_CHANGE_DEG) ** 2] * 2)
+        tilt_change = np.radians(TILT_CHANGE_DEG)
         try:
             carried = carried_plane(key.plane, self.covariance, cur_from_key, est.covariance)
             belief = keyframe_plane(carried, measured=measured, prior=self.mounting,
-                                    distance_change=distance_change,
-                                    tilt_change=np.radians(TILT_CHANGE_DEG))
+                                    distance_change=distance_change, tilt_change=tilt_change)
             J = propagation_jacobian(key.plane, cur_from_key)[1][:, :3]
-            link = PlaneLink(self.covariance @ J.T @ np.linalg.inv(carried.covariance + noise),
+            predicted = carried.covariance + process_noise(distance_change, tilt_change)
+            link = PlaneLink(self.covariance @ J.T @ np.linalg.inv(predicted),
                              to_chart(carried.plane, belief.plane))
         except (ValueError, np.linalg.LinAlgError):
             return key.plane.in_frame(cur_from_key), None, fit.gain, fit.bias, None
