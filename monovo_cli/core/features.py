@@ -53,6 +53,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from monovo_cli.core.plane_belief import tangent_basis
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import make_pose
 from monovo_cli.geometry.plane import Plane
@@ -243,14 +244,6 @@ def _match(key: Features, cur: Features, ratio: float) -> tuple[np.ndarray, np.n
 # --------------------------------------------------------------------------- pose
 
 
-def _tangent_basis(n: np.ndarray) -> np.ndarray:
-    """(3, 2) orthonormal basis of the plane orthogonal to the unit ``n``, ``e1 x e2 = n``."""
-    a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = np.cross(n, a)
-    e1 /= np.linalg.norm(e1)
-    return np.column_stack([e1, np.cross(n, e1)])
-
-
 def pose_from_homography(H_n: np.ndarray, plane: Plane, key_rays: np.ndarray
                          ) -> tuple[np.ndarray, float] | None:
     """``(cur_from_key 4x4, plane_consistency)`` from a normalised plane homography.
@@ -274,7 +267,7 @@ def pose_from_homography(H_n: np.ndarray, plane: Plane, key_rays: np.ndarray
     if depth_sign == 0:
         return None
     H_n = H_n * depth_sign
-    E = _tangent_basis(n)
+    E = tangent_basis(n)
     A = H_n @ E
     sv = np.linalg.svd(A, compute_uv=False)
     if sv[0] <= 0.0 or not np.isfinite(sv[0]):
