@@ -143,8 +143,8 @@ class KeyLevel:
         R, t = T[:3, :3], T[:3, 3]
         if not cam.has_distortion and len(self.box_rays) and self.plane_m.any() and \
                 float(np.min(self.box_rays @ (R[2] + t[2] * self.plane_m))) > 1e-9:
-            K = cam.K
-            H = K @ (R + np.outer(t, self.plane_m)) @ np.linalg.inv(K)
+            K, K_inv = self._intrinsics
+            H = K @ (R + np.outer(t, self.plane_m)) @ K_inv
             return cv2.perspectiveTransform(self.grid, H)
         if not cam.has_distortion and len(self.points) and \
                 float(np.min(self.points.X @ R[2])) + t[2] > 1e-9:
@@ -158,6 +158,12 @@ class KeyLevel:
         Xc += t
         u, v, _ = project_in_front(cam, Xc)
         return pixel_grid(u, v)
+
+    @cached_property
+    def _intrinsics(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(K, K^-1)`` of the level's camera (the homography's, once per level)."""
+        K = self.points.camera.K
+        return K, np.linalg.inv(K)
 
     @cached_property
     def grid3(self) -> np.ndarray:
