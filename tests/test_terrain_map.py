@@ -98,6 +98,38 @@ def test_smoothing_puts_a_keyframe_on_the_plane_its_successors_found():
         assert tmap.ground_points()[5:40, 2] == pytest.approx(np.zeros(35), abs=1e-12)
 
 
+def test_a_keyframe_is_refined_against_its_successor_only_after_a_re_anchor(monkeypatch):
+    """The sweep runs when a re-anchored keyframe (one with a plane link) follows, not when
+    a re-initialised one does (its pose was bridged by the prediction), nor against a lost
+    last frame (finish(None, ...))."""
+    import monovo_cli.core.terrain_map as tm
+    from monovo_cli.core.plane_belief import PlaneLink
+
+    calls = []
+    monkeypatch.setattr(tm, "sweep_depths", lambda cam, plane, X, *a, **k: (calls.append(len(X)) or X,
+                                                                            np.zeros(len(X), bool)))
+    plane = Plane(N0, 1.5)
+    rays = np.column_stack([np.linspace(-0.5, 0.5, 20), np.linspace(0.1, 0.6, 20), np.ones(20)])
+    img = np.zeros((8, 8), np.float32)
+
+    def key(index, link):
+        k = fake_key(index, plane.intersect(rays), make_pose(np.eye(3), [0.0, 0.0, 0.1 * index]))
+        k.levels[0].points.camera = SimpleNamespace(has_distortion=False)
+        k.link = link
+        return k
+
+    tmap = TerrainMap(plane)
+    tmap.add(key(0, None), img)
+    tmap.add(key(5, None), img)  # re-initialised: no refinement of keyframe 0
+    assert calls == []
+    tmap.add(key(9, PlaneLink(np.eye(3), np.zeros(3))), img)  # re-anchored: keyframe 5 refined
+    assert calls == [20]
+    tmap.finish(None, make_pose(np.eye(3), [0.0, 0.0, 1.5]))
+    assert calls == [20]
+    tmap.finish(img, make_pose(np.eye(3), [0.0, 0.0, 1.5]))
+    assert calls == [20, 20]
+
+
 def test_height_grid_by_hand():
     # looking straight down from 2 m (normal = optical axis): ground frame right = x,
     # forward = -y (image up), height = 2 - z

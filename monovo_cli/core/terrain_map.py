@@ -117,9 +117,12 @@ class TerrainMap:
     def add(self, key: Keyframe, image: np.ndarray | None = None) -> None:
         """A keyframe's finest-level points; replaces an earlier keyframe of the same index.
         ``image`` (H, W) float32: the keyframe's own image, against which the previous
-        keyframe's depths are refined (at the new keyframe's pose)."""
+        keyframe's depths are refined (at the new keyframe's pose) when ``key`` was anchored
+        by a re-anchor (it has a plane link), not by a re-initialisation, whose pose was
+        bridged by the prediction."""
         last = self._last
-        if last is not None and last.index != key.index and image is not None:
+        if last is not None and last.index != key.index and image is not None and \
+                getattr(key, "link", None) is not None:  # (not at a re-initialisation's bridged pose)
             self._refine(last, image, se3_inv(key.world_from_key) @ last.world_from_key)
         self._store(key, key.levels[0].points.X[::self._step(key)])
         if last is None or last.index != key.index:  # (a rebuilt keyframe keeps its image)
@@ -127,8 +130,8 @@ class TerrainMap:
         self._last = key
 
     def finish(self, image: np.ndarray | None, world_from_cam: np.ndarray) -> None:
-        """The last frame (``image``, pose ``world_from_cam``): refine the last keyframe's
-        depths against it."""
+        """The last frame (``image``, pose ``world_from_cam``; None: no image, or a lost frame
+        whose pose is only predicted): refine the last keyframe's depths against it."""
         last = self._last
         if last is not None and image is not None:
             self._refine(last, image, se3_inv(world_from_cam) @ last.world_from_key)

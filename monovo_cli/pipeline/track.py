@@ -246,7 +246,9 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
             first = next(tracked)
         prev = None
         dist = 0.0
+        last_lost = False
         for res in itertools.chain([first], tracked):
+            last_lost = res.status == FrameStatus.LOST
             with _signals_held():
                 results.append((res.index, res.timestamp, res.world_from_cam))
                 if res.index > 0:
@@ -276,7 +278,7 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     if out_dir is not None:
         _write_trajectory_plot(Path(out_dir), cfg.plane, results, gt_poses)
         if terrain is not None:
-            terrain.finish(images.last, results[-1][2])
+            terrain.finish(None if last_lost else images.last, results[-1][2])
             write_terrain(Path(out_dir), terrain, np.array([pose for _, _, pose in results]))
     return TrackSummary(len(results), float(np.mean(msds)) if msds else 0.0, seconds, lost,
                         reanchored, dist, Path(out_dir) if out_dir is not None else None, reinit)
