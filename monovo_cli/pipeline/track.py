@@ -245,8 +245,7 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
         with _naming(frames.paths[0]):  # frame 0 builds the ground model
             first = next(tracked)
         prev = None
-        dist = 0.0
-        last_lost = False
+        dist, last_lost = 0.0, False
         for res in itertools.chain([first], tracked):
             last_lost = res.status == FrameStatus.LOST
             with _signals_held():
