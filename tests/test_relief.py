@@ -374,10 +374,10 @@ def texture():
     return GroundTexture(procedural_texture(1024, 1), 1.2 / default_camera(256, 256).fx)
 
 
-def two_views(kind: str, texture):
+def rendered_pair(kind: str, texture):
     """Two rendered views 0.4 m apart (turned 1 deg) of ``kind`` ground (seed 5, 256 x 256,
-    supersample 2, noise variance 10), the keyframe on the true ground's best-fit plane over
-    the view: ``(keyframe, current pyramid, true cur_from_key, g0, terrain)``."""
+    supersample 2, noise variance 10): ``(camera, mount, g0, g1, renderer, img0, img1,
+    terrain)``."""
     terrain = make_terrain(kind, np.random.default_rng(5), (0.0, 0.0, 10.0, 10.0))
     cam = default_camera(256, 256)
     mount = rover_mount("drive")
@@ -386,6 +386,13 @@ def two_views(kind: str, texture):
     renderer = TerrainRenderer(cam, texture, terrain, supersample=2, sun_azimuth=1.0)
     rng = np.random.default_rng(7)
     img0, img1 = (finish_frame(renderer.render(g), rng, 10.0).astype(np.float32) for g in (g0, g1))
+    return cam, mount, g0, g1, renderer, img0, img1, terrain
+
+
+def two_views(kind: str, texture):
+    """:func:`rendered_pair` with the keyframe on the true ground's best-fit plane over the
+    view: ``(keyframe, current pyramid, true cur_from_key, g0, terrain)``."""
+    cam, mount, g0, g1, renderer, img0, img1, terrain = rendered_pair(kind, texture)
     region = ground_region(cam, mount)
     ys, xs = np.mgrid[region[1]:region[3]:4, region[0]:region[2]:4]
     hits = renderer.cast(g0, xs.ravel().astype(float), ys.ravel().astype(float))
@@ -463,14 +470,7 @@ def test_a_pitched_keyframe_plane_does_not_turn_into_scale(texture):
     points' mean height to the pitched plane instead gave 11.6 mm). Its chi-square, 7015
     over 440 heights, is significant but only 0.21 per point: refine_pose_and_relief keeps
     the plane's estimate (a tilt is the keyframe plane's business, not the relief's)."""
-    terrain = make_terrain("flat", np.random.default_rng(5), (0.0, 0.0, 10.0, 10.0))
-    cam = default_camera(256, 256)
-    mount = rover_mount("drive")
-    g0 = make_pose(np.eye(3), np.array([3.0, 2.0, 0.0])) @ mount
-    g1 = make_pose(so3_exp(np.array([0.0, 0.0, math.radians(1.0)])), np.array([3.4, 2.02, 0.01])) @ mount
-    ren = TerrainRenderer(cam, texture, terrain, supersample=2, sun_azimuth=1.0)
-    rng = np.random.default_rng(7)
-    img0, img1 = (finish_frame(ren.render(g), rng, 10.0).astype(np.float32) for g in (g0, g1))
+    cam, mount, g0, g1, _, img0, img1, _ = rendered_pair("flat", texture)
     plane = tilted(Plane(*ground_in_camera(g0)), math.radians(1.0))
     opts = TrackOptions()
     key = build_keyframe(0, img0, cam, plane, ground_region(cam, mount), np.eye(4), opts)
