@@ -30,10 +30,11 @@ class _Points:
 
 
 def fake_key(index, X, world_from_key=None, plane=None):
-    """What TerrainMap reads of a keyframe: its index, pose, plane and level-0 points."""
+    """What TerrainMap reads of a keyframe: its index, pose, plane, plane link (None) and
+    level-0 points."""
     return SimpleNamespace(index=index, levels=(SimpleNamespace(points=_Points(X)),),
                            world_from_key=np.eye(4) if world_from_key is None else world_from_key,
-                           plane=plane or Plane(N0, 1.5))
+                           plane=plane or Plane(N0, 1.5), link=None)
 
 
 def test_ground_frame_axes():

@@ -122,7 +122,7 @@ class TerrainMap:
         bridged by the prediction."""
         last = self._last
         if last is not None and last.index != key.index and image is not None and \
-                getattr(key, "link", None) is not None:  # (not at a re-initialisation's bridged pose)
+                key.link is not None:  # (not at a re-initialisation's bridged pose)
             self._refine(last, image, se3_inv(key.world_from_key) @ last.world_from_key)
         self._store(key, key.levels[0].points.X[::self._step(key)])
         if last is None or last.index != key.index:  # (a rebuilt keyframe keeps its image)
@@ -145,7 +145,7 @@ class TerrainMap:
         ok = np.all(np.isfinite(X), axis=1)
         self._chunks[key.index] = _Chunk(
             X[ok], pts.intensity[::self._step(key)][ok].astype(np.float32),
-            np.array(key.world_from_key), key.plane, getattr(key, "link", None))
+            np.array(key.world_from_key), key.plane, key.link)
 
     def _planes(self) -> dict[int, Plane]:
         """Each keyframe's plane (its camera), smoothed in hindsight when ``smooth``: the
