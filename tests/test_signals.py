@@ -5,6 +5,12 @@ done and trajectory.csv / .tum hold exactly those frames; after kill -9 every fi
 a final name is whole (motion.csv is streamed row by row, the trajectory files are only
 ever renamed into place), and a fresh rerun reproduces the uninterrupted outputs byte for
 byte. Every file is compared with an uninterrupted reference run of the same sequence.
+
+The runs that are compared by prefix use ``--no-smooth``: by default the trajectory files
+hold the poses re-scaled in hindsight over the frames done (monovo_cli.core.hindsight), so
+an interrupted run's earlier poses differ from the uninterrupted run's, which knew more; the
+files are written by the same code either way. With the default, an interrupted run keeps
+whole rows of exactly the frames done (:func:`test_signal_with_smoothing_keeps_whole_rows`).
 """
 
 from __future__ import annotations
@@ -31,13 +37,14 @@ TIMEOUT = 120
 
 @pytest.fixture(scope="module")
 def drive(tmp_path_factory):
-    """A 300-frame 128x128 drive (~2 s of tracking) and its uninterrupted outputs."""
+    """A 300-frame 128x128 drive (~2 s of tracking) and its uninterrupted outputs with
+    ``--no-smooth`` (the poses as streamed)."""
     root = tmp_path_factory.mktemp("signals")
     seq, ref = root / "seq", root / "ref"
     r = CliRunner().invoke(main, ["synth", str(seq), "--frames", str(FRAMES), "--size", "128x128",
                                   "--seed", "4", "-q"])
     assert r.exit_code == 0, r.output
-    r = CliRunner().invoke(main, ["track", str(seq), "-o", str(ref), "-q"])
+    r = CliRunner().invoke(main, ["track", str(seq), "-o", str(ref), "-q", "--no-smooth"])
     assert r.exit_code == 0, r.output
     return seq, {name: (ref / name).read_text() for name in RESULTS}
 
@@ -110,7 +117,7 @@ def _check_prefix(out: Path, reference: dict[str, str], *, exact: bool) -> int:
 def test_signal_keeps_exactly_the_frames_done(drive, tmp_path, signum, status, word):
     seq, reference = drive
     out = tmp_path / "out"
-    proc = _start(_monovo("track", str(seq), "-o", str(out), "-q"))
+    proc = _start(_monovo("track", str(seq), "-o", str(out), "-q", "--no-smooth"))
     _wait_for_rows(proc, out / "motion.csv", 5)
     proc.send_signal(signum)
     _, err = proc.communicate(timeout=TIMEOUT)
@@ -119,6 +126,29 @@ def test_signal_keeps_exactly_the_frames_done(drive, tmp_path, signum, status, w
     rows = _check_prefix(out, reference, exact=True)
     assert 5 <= rows < FRAMES - 1, "the signal did not arrive mid-run"
     assert not list(out.glob(".*.tmp")), "temporary files left behind"
+
+
+def test_signal_with_smoothing_keeps_whole_rows(drive, tmp_path):
+    """Default options: after Ctrl-C the trajectory files hold one whole row per frame done
+    (frames and timestamps as the reference's), motion.csv is the reference's prefix."""
+    seq, reference = drive
+    out = tmp_path / "out"
+    proc = _start(_monovo("track", str(seq), "-o", str(out), "-q"))
+    _wait_for_rows(proc, out / "motion.csv", 20)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=TIMEOUT)
+    assert proc.returncode == 130, err
+    motion = (out / "motion.csv").read_text()
+    assert reference["motion.csv"].startswith(motion) and motion.endswith("\n")
+    rows = motion.count("\n") - 1
+    assert 20 <= rows < FRAMES - 1, "the signal did not arrive mid-run"
+    for name, sep, skip in (("trajectory.csv", ",", 1), ("trajectory.tum", " ", 0)):
+        got = [ln.split(sep) for ln in (out / name).read_text().splitlines()[skip:]]
+        ref = [ln.split(sep) for ln in reference[name].splitlines()[skip:]]
+        assert len(got) == rows + 1 and all(len(g) == len(ref[0]) for g in got), name
+        key = 2 if skip else 1  # frame and timestamp / timestamp
+        assert [g[:key] for g in got] == [r[:key] for r in ref[:rows + 1]], name
+        assert all(float(v) == float(v) for g in got for v in g), f"{name}: not numbers"
 
 
 def test_sigint_while_streaming_keeps_stdout_pure_csv(drive):
@@ -142,7 +172,7 @@ def test_kill9_leaves_whole_files_and_a_rerun_reproduces(drive, tmp_path, seed):
     seq, reference = drive
     out = tmp_path / "out"
     target = random.Random(seed).randint(2, 150)  # past the 100-frame checkpoint sometimes
-    proc = _start(_monovo("track", str(seq), "-o", str(out), "-q"))
+    proc = _start(_monovo("track", str(seq), "-o", str(out), "-q", "--no-smooth"))
     _wait_for_rows(proc, out / "motion.csv", target)
     proc.send_signal(signal.SIGKILL)
     proc.communicate(timeout=TIMEOUT)
@@ -151,9 +181,10 @@ def test_kill9_leaves_whole_files_and_a_rerun_reproduces(drive, tmp_path, seed):
     assert rows >= target
     if rows >= 100:  # the 100-frame checkpoint was written
         assert (out / "trajectory.csv").read_text().count("\n") >= 101
-    r = CliRunner().invoke(main, ["track", str(seq), "-o", str(out), "-q"])
+    r = CliRunner().invoke(main, ["track", str(seq), "-o", str(out), "-q", "--no-smooth"])
     assert r.exit_code == 2 and "--overwrite" in r.output  # results are never clobbered
-    r = CliRunner().invoke(main, ["track", str(seq), "-o", str(out), "-q", "--overwrite"])
+    r = CliRunner().invoke(main, ["track", str(seq), "-o", str(out), "-q", "--overwrite",
+                                  "--no-smooth"])
     assert r.exit_code == 0, r.output
     for name in RESULTS:
         assert (out / name).read_text() == reference[name], name
@@ -165,7 +196,8 @@ import sys
 from pathlib import Path
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.pipeline.track import track_sequence
-track_sequence(Path(sys.argv[1]), None, Path(sys.argv[2]), TrackOptions(), checkpoint_every=1)
+track_sequence(Path(sys.argv[1]), None, Path(sys.argv[2]), TrackOptions(smooth=False),
+               checkpoint_every=1)
 """
 
 

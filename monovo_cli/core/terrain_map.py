@@ -11,9 +11,11 @@ of its suspension). The map is written at the end of the run, so each keyframe's
 put on its plane as the whole chain knows it: the Rauch-Tung-Striebel backward pass over the
 keyframe planes, with the filter's own covariances, process noise and innovations
 (:class:`~monovo_cli.core.plane_belief.PlaneLink`); a point keeps its height off the plane
-(its relief) and moves along its ray. Only the terrain products are smoothed: motion.csv and
-the trajectory stay the filter's, as streamed. (On the rolling terrain drive the first
-keyframes' points sit 4.4 and 3.8 cm low without it: a diagnostic run.)
+(its relief) and moves along its ray, and goes into the world frame with its keyframe's
+pose re-scaled with the smoothed planes, as trajectory.csv has it
+(:mod:`monovo_cli.core.hindsight`); motion.csv stays the filter's, as streamed. (On the
+rolling terrain drive the first keyframes' points sit 4.4 and 3.8 cm low without it: a
+diagnostic run.)
 
 **What the relief misses.** When a keyframe is left, its points are searched along their
 rays against its successor's image (or the last frame's) at the successor's pose
@@ -41,8 +43,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from monovo_cli.core.depth import refine_depths, sweep_depths
+from monovo_cli.core.hindsight import smoothed_key_poses, smoothed_planes
 from monovo_cli.core.keyframe import Keyframe
-from monovo_cli.core.plane_belief import PlaneLink, from_chart, smoothed_corrections
+from monovo_cli.core.plane_belief import PlaneLink
 from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.geometry.plane import Plane
 
@@ -111,8 +114,8 @@ class TerrainMap:
         """4x4: the ground frame (module docstring) of the first keyframe's plane (smoothed)."""
         if not self._chunks:
             return ground_frame(self.plane0)
-        first = min(self._chunks)
-        return ground_frame(self._planes()[first].in_frame(self._chunks[first].world_from_key))
+        _, plane, pose = self._smoothed()[0]
+        return ground_frame(plane.in_frame(pose))
 
     def add(self, key: Keyframe, image: np.ndarray | None = None) -> None:
         """A keyframe's finest-level points; replaces an earlier keyframe of the same index.
@@ -147,16 +150,14 @@ class TerrainMap:
             X[ok], pts.intensity[::self._step(key)][ok].astype(np.float32),
             np.array(key.world_from_key), key.plane, key.link)
 
-    def _planes(self) -> dict[int, Plane]:
-        """Each keyframe's plane (its camera), smoothed in hindsight when ``smooth``: the
-        backward pass of the Rauch-Tung-Striebel smoother over the chain of keyframe planes
-        (:func:`~monovo_cli.core.plane_belief.smoothed_corrections`, module docstring)."""
-        keys = sorted(self._chunks)
-        chunks = [self._chunks[k] for k in keys]
+    def _smoothed(self) -> list[tuple[_Chunk, Plane, np.ndarray]]:
+        """Each keyframe's chunk, oldest first, with its plane (its camera) and pose smoothed
+        in hindsight when ``smooth`` (:mod:`monovo_cli.core.hindsight`, module docstring)."""
+        chunks = [self._chunks[k] for k in sorted(self._chunks)]
         if not self.smooth:
-            return {k: c.plane for k, c in zip(keys, chunks)}
-        delta = smoothed_corrections([c.link for c in chunks])
-        return {k: from_chart(c.plane, x) for k, c, x in zip(keys, chunks, delta)}
+            return [(c, c.plane, c.world_from_key) for c in chunks]
+        planes = smoothed_planes(chunks)
+        return list(zip(chunks, planes, smoothed_key_poses(chunks, planes)))
 
     def _refine(self, key: Keyframe, image: np.ndarray, cur_from_key: np.ndarray) -> None:
         pts = key.levels[0].points
@@ -181,18 +182,16 @@ class TerrainMap:
     def points(self) -> tuple[np.ndarray, np.ndarray]:
         """``(X (N, 3) world frame m, intensity (N,) grey levels)`` of all keyframes, in order:
         each keyframe's points moved along their rays from its plane to its smoothed plane
-        (keeping their heights off it), then into the world frame with its pose."""
+        (keeping their heights off it), then into the world frame with its smoothed pose."""
         if not self._chunks:
             return np.zeros((0, 3)), np.zeros(0, np.float32)
-        planes = self._planes()
         out = []
-        for k in sorted(self._chunks):
-            c, new = self._chunks[k], planes[k]
+        for c, new, pose in self._smoothed():
             X = c.X
             if new is not c.plane:
                 h = c.plane.distance - X @ c.plane.normal  # heights off the plane
                 X = X * ((new.distance - h) / (X @ new.normal))[:, None]
-            out.append(X @ c.world_from_key[:3, :3].T + c.world_from_key[:3, 3])
+            out.append(X @ pose[:3, :3].T + pose[:3, 3])
         return (np.concatenate(out),
                 np.concatenate([self._chunks[k].intensity for k in sorted(self._chunks)]))
 

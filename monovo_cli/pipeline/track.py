@@ -5,7 +5,8 @@ model (:func:`init_model`), and the tracking run (:func:`track_sequence`) that t
 files to the pure core (:mod:`monovo_cli.core.odometry`). Rows of motion.csv are written
 and flushed as frames are done; trajectory.csv / .tum are written atomically at the end,
 every ``checkpoint_every`` frames, and when the run is interrupted, so they always hold
-exactly the frames done.
+exactly the frames done, their poses re-scaled in hindsight over those frames
+(:mod:`monovo_cli.core.hindsight`; ``TrackOptions.smooth``).
 """
 
 from __future__ import annotations
@@ -23,13 +24,13 @@ from pathlib import Path
 
 import numpy as np
 
+from monovo_cli.core.hindsight import Hindsight
 from monovo_cli.core.keyframe import Keyframe, build_keyframe
 from monovo_cli.core.odometry import FrameResult, track
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.core.terrain_map import TerrainMap
 from monovo_cli.errors import InputError, OutputError, TrackingError
-from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.atomic import atomic_write_text
 from monovo_cli.io.config import InitConfig, check_frame_size, load_init
 from monovo_cli.io.formats import CovarianceWriter, MotionRow, MotionWriter, trajectory_csv_text, tum_text
@@ -42,6 +43,7 @@ from monovo_cli.pipeline.preflight import (
     groundtruth_poses,
     model_keyframe,
 )
+from monovo_cli.pipeline.products import write_terrain, write_trajectory_plot
 
 log = logging.getLogger(__name__)
 
@@ -192,7 +194,7 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     6x6 covariance of (tx, ty, tz, rx, ry, rz) (m, deg). ``topic`` the image topic of a ROS
     bag. Every side input is checked before anything is written (:mod:`.preflight`).
     ``terrain_out`` (with an output directory): also terrain.ply, heightmap.png and
-    heightmap.csv, what tracking learned of the ground (:func:`write_terrain`).
+    heightmap.csv, what tracking learned of the ground (:func:`~monovo_cli.pipeline.products.write_terrain`).
     ``progress(done, total)`` is called after every frame.
     """
     check_covariance_path(covariance, out_dir)
@@ -221,11 +223,17 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     else:
         stream = sys.stdout
     results: list[tuple[int, float, np.ndarray]] = []
+    hindsight = Hindsight() if options.smooth else None
+
+    def final_poses() -> np.ndarray:
+        idx, _, poses = zip(*results)
+        return hindsight.poses(idx, np.array(poses)) if hindsight else np.array(poses)
 
     def flush_trajectory() -> None:
         if out_dir is None or not results:
             return
-        idx, ts, poses = zip(*results)
+        idx, ts, _ = zip(*results)
+        poses = final_poses()
         atomic_write_text(Path(out_dir) / "trajectory.csv", trajectory_csv_text(idx, ts, poses))
         atomic_write_text(Path(out_dir) / "trajectory.tum", tum_text(ts, poses))
 
@@ -235,13 +243,19 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     try:
         writer = MotionWriter(stream, with_std=True, with_reason=True)
         cov_writer = CovarianceWriter(_open_output(Path(covariance))) if covariance else None
-        terrain = TerrainMap(cfg.plane) if terrain_out and out_dir is not None else None
+        terrain = TerrainMap(cfg.plane, smooth=options.smooth) \
+            if terrain_out and out_dir is not None else None
         images = _LastImage(_read_frames(frames, skip_bad_frames, out_dir), keep=terrain)
+
+        def on_keyframe(key: Keyframe) -> None:
+            if hindsight is not None:
+                hindsight.add(key.index, key)
+            if terrain is not None:
+                terrain.add(key, images.last)
+
         tracked = track(images, cfg.camera, cfg.plane, cfg.region, options, mask=usable,
-                        first_keyframe=first_key, priors=priors,
-                        sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg,
-                        on_keyframe=None if terrain is None else
-                        lambda key: terrain.add(key, images.last))
+                        first_keyframe=first_key, priors=priors, on_keyframe=on_keyframe,
+                        sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg)
         with _naming(frames.paths[0]):  # frame 0 builds the ground model
             first = next(tracked)
         prev = None
@@ -275,10 +289,12 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                 cov_writer.close()
     seconds = time.perf_counter() - t0
     if out_dir is not None:
-        _write_trajectory_plot(Path(out_dir), cfg.plane, results, gt_poses)
+        poses = final_poses()
+        write_trajectory_plot(Path(out_dir), cfg.plane, [i for i, _, _ in results], poses,
+                               gt_poses)
         if terrain is not None:
             terrain.finish(None if last_lost else images.last, results[-1][2])
-            write_terrain(Path(out_dir), terrain, np.array([pose for _, _, pose in results]))
+            write_terrain(Path(out_dir), terrain, poses)
     return TrackSummary(len(results), float(np.mean(msds)) if msds else 0.0, seconds, lost,
                         reanchored, dist, Path(out_dir) if out_dir is not None else None, reinit)
 
@@ -297,23 +313,6 @@ class _LastImage:
         if self._keep:
             self.last = image
         return index, ts, image
-
-
-def write_terrain(out_dir: Path, terrain: TerrainMap, world_from_cam: np.ndarray) -> None:
-    """``terrain.ply``, ``heightmap.csv`` and ``heightmap.png`` (the camera path drawn over
-    the heights) of ``terrain`` into ``out_dir`` (:mod:`monovo_cli.io.terrain`)."""
-    from monovo_cli.io.terrain import write_heightmap_csv, write_ply
-    from monovo_cli.io.video import write_png_atomic
-    from monovo_cli.viz.heightmap import plot_height_map
-
-    X, intensity = terrain.points()
-    write_ply(out_dir / "terrain.ply", X, intensity)
-    grid = terrain.height_grid()
-    G = terrain.ground_from_world
-    write_heightmap_csv(out_dir / "heightmap.csv", grid, G)
-    path = world_from_cam[:, :3, 3] @ G[:3, :3].T + G[:3, 3]
-    title = f"{out_dir.name}: heights above frame 0's ground, {len(X)} points"
-    write_png_atomic(out_dir / "heightmap.png", plot_height_map(grid, path=path[:, :2], title=title))
 
 
 def _read_frames(frames: FrameSequence, skip_bad_frames: bool,
@@ -372,29 +371,3 @@ def _row(res: FrameResult) -> MotionRow:
     return MotionRow(frame=res.index, prev_from_cur=res.prev_from_cur, msd=res.msd,
                      iterations=res.iterations, points=res.points, status=res.status, std=res.std,
                      reason=res.reason)
-
-
-def _write_trajectory_plot(out_dir: Path, plane: Plane, results: list,
-                           groundtruth: np.ndarray | None) -> None:
-    """``trajectory.png`` in ``out_dir`` (atomically), statuses read back from motion.csv.
-
-    The ground truth is drawn from its first pose, which is put at camera 0.
-    """
-    from monovo_cli.geometry.lie import se3_inv
-    from monovo_cli.io.formats import read_motion_stats
-    from monovo_cli.io.video import write_png_atomic
-    from monovo_cli.viz.plots import plot_trajectory
-
-    if not results:
-        return
-    idx, _, poses = zip(*results)
-    stats = read_motion_stats(out_dir / "motion.csv")
-    statuses = [stats.get(k, (FrameStatus.OK, 0.0))[0] for k in idx]
-    gt = None
-    if groundtruth is not None:
-        gt = se3_inv(groundtruth[0]) @ groundtruth
-    dist = float(np.sum(np.linalg.norm(np.diff(np.array(poses)[:, :3, 3], axis=0), axis=1)))
-    title = f"{out_dir.name}: {len(poses)} frames, path {dist:.2f} m"
-    write_png_atomic(out_dir / "trajectory.png",
-                     plot_trajectory(np.array(poses), plane, statuses=statuses, groundtruth=gt,
-                                     title=title))

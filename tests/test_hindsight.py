@@ -1,0 +1,74 @@
+"""The poses re-scaled in hindsight (monovo_cli.core.hindsight), against hand-made chains."""
+
+import math
+
+import numpy as np
+import pytest
+from plane_helpers import N0
+
+from monovo_cli.core.hindsight import Hindsight, KeyRecord, smoothed_poses
+from monovo_cli.core.plane_belief import PlaneLink
+from monovo_cli.geometry.lie import make_pose, se3_inv, so3_exp
+from monovo_cli.geometry.plane import Plane
+
+
+def drive(n: int) -> np.ndarray:
+    """(n, 4, 4) a camera over the plane N0 (1.5 m below), moving 5 cm per frame along the
+    ground and turning 1 deg per frame about its normal: the true poses, camera 0 = world."""
+    fwd = np.cross(N0, [1.0, 0.0, 0.0])
+    out, T = [np.eye(4)], np.eye(4)
+    for _ in range(n - 1):
+        T = T @ make_pose(so3_exp(-N0 * math.radians(1.0)), 0.05 * fwd)
+        out.append(T)
+    return np.array(out)
+
+
+def measured(truth: np.ndarray, keys: list[int], scale: dict[int, float]) -> np.ndarray:
+    """The poses a tracker composes when every motion of keyframe ``k``'s segment came out
+    with its translation times ``scale[k]`` (a plane ``scale[k]`` times too far)."""
+    out = truth.copy()
+    seg = np.searchsorted(keys, np.arange(len(truth)), side="right") - 1
+    for i in range(1, len(truth)):
+        step = se3_inv(truth[i - 1]) @ truth[i]
+        step[:3, 3] *= scale[keys[seg[i - 1]]]
+        out[i] = out[i - 1] @ step
+    return out
+
+
+def test_a_keyframe_the_chain_corrects_puts_its_segment_and_all_after_it_back():
+    """Keyframe 0's plane was 1.54 m where the ground is 1.5 m below (frame 0 at a crest):
+    its segment's translations came out 1.54 / 1.5 too long and every later pose carries
+    that. Its successor's link says -4 cm (gain 1), so hindsight re-scales the segment and
+    the poses after it fall back on the truth; keyframes 5 and 9 were right and stay."""
+    truth = drive(14)
+    keys = [0, 5, 9]
+    est = measured(truth, keys, {0: 1.54 / 1.5, 5: 1.0, 9: 1.0})
+    assert np.linalg.norm(est[-1][:3, 3] - truth[-1][:3, 3]) > 0.006  # 25 cm at 2.7 %
+    planes = [Plane(N0, 1.54), Plane(N0, 1.5), Plane(N0, 1.5)]
+    links = [None, PlaneLink(np.eye(3), np.array([-0.04, 0.0, 0.0])),
+             PlaneLink(np.eye(3), np.zeros(3))]
+    records = [(k, KeyRecord(est[k], p, link)) for k, p, link in zip(keys, planes, links)]
+    out = smoothed_poses(range(14), est, records)
+    assert out == pytest.approx(truth, abs=1e-12)
+    # no link (a chain that begins at each keyframe, or --no-smooth): nothing moves
+    plain = [(k, KeyRecord(est[k], p, None)) for k, p in zip(keys, planes)]
+    assert smoothed_poses(range(14), est, plain) == pytest.approx(est, abs=1e-12)
+
+
+def test_hindsight_keeps_the_last_keyframe_of_an_index_and_frames_before_the_first():
+    """A keyframe rebuilt in place replaces the one of its index; frames before the first
+    keyframe (none in a run, where frame 0 is one) keep their poses."""
+    truth = drive(10)
+    est = measured(truth, [0, 4], {0: 1.0, 4: 1.02})
+    h = Hindsight()
+    h.add(4, KeyRecord(est[4], Plane(N0, 1.5), None))
+    h.add(6, KeyRecord(est[6], Plane(N0, 1.5), PlaneLink(np.eye(3), np.array([0.9, 0, 0]))))
+    h.add(6, KeyRecord(est[6], Plane(N0, 1.5), None))  # the rebuilt one: no link
+    out = h.poses(range(10), est)
+    assert out == pytest.approx(est, abs=1e-12)
+    h.add(9, KeyRecord(est[9], Plane(N0, 1.5), PlaneLink(np.eye(3), np.array([-0.03, 0, 0]))))
+    out = h.poses(range(10), est)
+    assert out[:7] == pytest.approx(est[:7], abs=1e-12)  # keyframe 4 has no successor link
+    step = se3_inv(est[6]) @ est[7]
+    assert np.linalg.norm(out[7][:3, 3] - out[6][:3, 3]) == pytest.approx(
+        np.linalg.norm(step[:3, 3]) * 1.47 / 1.5, rel=1e-12)
