@@ -18,7 +18,9 @@ ground):
 Every drive is tracked end to end with default options (``runner.track_sequence``, PNG
 decoding included, on one core), and the ECC peer of ``benchmarks.peers`` runs on the same
 PNGs in the same run (it carries init.yaml's plane with its own motions). Reported per
-method: the final position error (% of the distance), the final heading error (the angle of
+method: the final position error (% of the distance) of trajectory.tum, and for monovo also
+of motion.csv's motions composed (as streamed; trajectory.tum is re-scaled in hindsight with
+the smoothed keyframe planes, ``monovo_cli.core.hindsight``), the final heading error (the angle of
 the final pose's rotation error), the scale ratio (estimated / true length of the per-frame
 translations, over the whole drive and over its last third: a creeping scale shows as a
 difference), the mean absolute per-frame errors, lost (monovo) or failed (ECC) frames and
@@ -39,10 +41,10 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import load, machine, one_core, std_columns
+from benchmarks.common import final_drift, load, machine, one_core, std_columns
 from benchmarks.peers import EccPeer, monovo_on_drive, peer_on_drive
 from monovo_cli.core.options import TrackOptions
-from monovo_cli.io.formats import read_motion_csv
+from monovo_cli.io.formats import read_motion_csv, read_tum
 from monovo_cli.io.terrain import read_ply
 from monovo_cli.synth.terrain import TERRAINS, load_terrain
 from monovo_cli.synth.write import synthesize
@@ -103,10 +105,16 @@ def run_case(root: Path, kind: str, frames: int, seed: int, renders: Path | None
     honesty = std_honesty(mono.errors, std_columns(out / "motion.csv"))
     ecc_est = gt.copy()  # (peer_on_drive keeps ECC's errors, not its motions: est = gt + error)
     ecc_est[:, :3, 3] += np.nan_to_num(ecc.errors[:, :3])
+    _, gt_traj = read_tum(seq / "groundtruth.tum")
+    streamed = np.concatenate([[np.eye(4)], est]).copy()
+    for k in range(1, len(streamed)):
+        streamed[k] = streamed[k - 1] @ streamed[k]
+    s_err, s_dist, _ = final_drift(streamed, gt_traj)
     rows = []
     for r, e, lost in ((mono, est, status.count("lost")), (ecc, ecc_est, ecc.failed)):
         err, dist, heading = r.drift
         rows.append({"method": r.name, "distance": dist, "pct": 100 * err / dist,
+                     "streamed": f"{100 * s_err / s_dist:.3f}" if r is mono else "",
                      "heading": heading, "scale": scale_ratios(e, gt), "mean": r.mean_abs(),
                      "lost": lost, "fps": (r.count / r.seconds, r.count / r.cpu)})
     return {"kind": kind, "frames": frames, "rows": rows, "honesty": honesty,
@@ -114,8 +122,8 @@ def run_case(root: Path, kind: str, frames: int, seed: int, renders: Path | None
 
 
 def table(results: list[dict]) -> str:
-    head = ("| terrain | method | final error (% of distance) | heading error (deg) | scale "
-            "(all / last third) | mean abs transl. error (m) | mean abs rot. error (deg) | "
+    head = ("| terrain | method | final error (% of distance) | as streamed (%) | heading error "
+            "(deg) | scale (all / last third) | mean abs transl. error (m) | mean abs rot. error (deg) | "
             "lost (failed) | frames/s wall (CPU) |")
     lines = [head, "|" + " --- |" * (head.count("|") - 1)]
     for res in results:
@@ -123,7 +131,8 @@ def table(results: list[dict]) -> str:
             m = r["mean"]
             lines.append(
                 f"| {res['kind']} ({res['frames']} frames, {r['distance']:.2f} m) | {r['method']} | "
-                f"{r['pct']:.3f} | {r['heading']:.3f} | {r['scale'][0]:.4f} / {r['scale'][1]:.4f} | "
+                f"{r['pct']:.3f} | {r['streamed']} | "
+                f"{r['heading']:.3f} | {r['scale'][0]:.4f} / {r['scale'][1]:.4f} | "
                 f"{m[:3].mean():.2e} | {m[3:].mean():.2e} | {r['lost']} | "
                 f"{r['fps'][0]:.1f} ({r['fps'][1]:.1f}) |")
     return "\n".join(lines)
