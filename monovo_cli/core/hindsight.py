@@ -21,6 +21,19 @@ predecessor's re-scaled pose composed with the re-scaled motion between the two,
 frame's pose its keyframe's composed with its own re-scaled motion from it, so the
 trajectory stays one rigid chain.
 
+The distances. The backward pass smooths the keyframes' planes with the mounting prior as
+the filter had it: one sample of the ground's departure per keyframe, at the keyframe's own
+frame. But the prior holds in every camera frame, and every frame's distance to its
+keyframe's plane is known at the keyframe's scale (``d_f = d_k - n . c_f``, ``c_f`` the frame
+camera's centre in the keyframe's): the suspension bobs over tens of frames, and a keyframe
+drawn at a crest is a sample as far from the mean as the bobbing goes. So the distances are
+solved again over the whole chain (:func:`smoothed_distances`): the carried distances of the
+links with the variance the carrying added, and the mounting prior on the mean of
+``log d_f`` over each keyframe's segment (:func:`segment_lifts`) with the prior's own std
+(the frames of a segment are not independent samples: together they weigh as one). On the
+flat bobbing drive the final error goes from 0.066 to 0.024 % (keyframe 0's distance from
+1.1 cm off to 0.06 cm). The tilts keep the backward pass's (they hardly move).
+
 ``motion.csv`` is written as frames are done and stays causal; trajectory.csv, .tum and the
 terrain products (:mod:`monovo_cli.core.terrain_map`) are written with these poses.
 """
@@ -56,10 +69,97 @@ class KeyRecord:
     link: PlaneLink | None
 
 
-def smoothed_planes(keys: Sequence[Anchored]) -> list[Plane]:
-    """Each keyframe's plane (its camera) smoothed over the chain, ``keys`` oldest first."""
+def smoothed_distances(keys: Sequence[Anchored],
+                       lifts: Sequence[float] | None = None) -> np.ndarray:
+    """(K,) each keyframe's distance (m) solved over the whole chain, NaN where its links did
+    not record what that takes (module docstring, "The distances").
+
+    ``keys`` oldest first; ``lifts[k]`` the mean over the frames of keyframe k's segment
+    (itself included) of ``log(d_f / d_k)``, a frame's distance to the keyframe's plane over
+    the keyframe's (None: zeros, the keyframes alone). Unknowns ``u_k = log(d'_k / d_k)``;
+    linear least squares over: each link's carried distance, ``u_{k+1} - u_k = log(d_c /
+    d_{k+1})`` with std ``sqrt(carried_variance) / d_c``; the mounting prior on each segment,
+    ``u_k = log(D_0 / d_k) - lifts[k]`` with std ``sigma / D_0``; and a chain's first
+    keyframe held at its distance with its own variance where that is much tighter than the
+    prior's (an ``init.yaml`` the images confirmed as exact). The normal equations are
+    tridiagonal (Thomas' algorithm)."""
+    K = len(keys)
+    lift = np.zeros(K) if lifts is None else np.asarray(lifts, dtype=float)
+    d = np.array([k.plane.distance for k in keys])
+    diag, off, rhs = np.zeros(K), np.zeros(K), np.zeros(K)  # off[k]: between k-1 and k
+    known = np.zeros(K, bool)
+    for k in range(1, K):
+        link = keys[k].link
+        if link is None or not np.isfinite(link.carried_distance):
+            continue
+        D0, sigma = link.mounting
+        w = link.carried_distance ** 2 / max(link.carried_variance, 1e-12 * D0 ** 2)
+        c = np.log(link.carried_distance / d[k])
+        diag[k - 1] += w
+        diag[k] += w
+        off[k] -= w
+        rhs[k] += w * c
+        rhs[k - 1] -= w * c
+        starts = k == 1 or keys[k - 1].link is None
+        if starts and link.previous_variance < 1e-2 * sigma ** 2:  # held (exact)
+            wp = d[k - 1] ** 2 / max(link.previous_variance, 1e-18)
+            diag[k - 1] += wp
+        for j in ((k - 1,) if starts else ()) + (k,):
+            wp = (D0 / sigma) ** 2
+            diag[j] += wp
+            rhs[j] += wp * (np.log(D0 / d[j]) - lift[j])
+            known[j] = True
+    u = _tridiagonal(diag + np.where(known, 0.0, 1.0), off, rhs)
+    return np.where(known, d * np.exp(u), np.nan)
+
+
+def _tridiagonal(diag: np.ndarray, off: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """Solve the symmetric tridiagonal system with ``diag`` (K,) and ``off[k]`` the entry
+    between k-1 and k (``off[0]`` unused), positive definite."""
+    K = len(diag)
+    c, r = np.zeros(K), np.zeros(K)
+    for k in range(K):
+        m = diag[k] - (off[k] * c[k - 1] if k else 0.0)
+        c[k] = off[k + 1] / m if k + 1 < K else 0.0
+        r[k] = (rhs[k] - (off[k] * r[k - 1] if k else 0.0)) / m
+    x = np.zeros(K)
+    for k in range(K - 1, -1, -1):
+        x[k] = r[k] - (c[k] * x[k + 1] if k + 1 < K else 0.0)
+    return x
+
+
+def smoothed_planes(keys: Sequence[Anchored], lifts: Sequence[float] | None = None
+                    ) -> list[Plane]:
+    """Each keyframe's plane (its camera) smoothed over the chain, ``keys`` oldest first: the
+    tilts from the smoother's backward pass, the distance from :func:`smoothed_distances`
+    (the backward pass's where that has none)."""
     delta = smoothed_corrections([k.link for k in keys])
-    return [k.plane if not np.any(x) else from_chart(k.plane, x) for k, x in zip(keys, delta)]
+    dist = smoothed_distances(keys, lifts)
+    out = []
+    for k, x, dk in zip(keys, delta, dist):
+        if np.isfinite(dk):
+            x = np.r_[dk - k.plane.distance, x[1:]]
+        out.append(k.plane if not np.any(x) else from_chart(k.plane, x))
+    return out
+
+
+def segment_lifts(index: Sequence[int], world_from_cam: np.ndarray,
+                  keys: Sequence[tuple[int, Anchored]]) -> list[float]:
+    """Per keyframe of ``keys`` (``(frame index, keyframe)``, oldest first), the mean over the
+    frames ``index`` of its segment, at poses ``world_from_cam`` (N, 4, 4), of ``log(d_f /
+    d_k)``: the frame camera's distance to the keyframe's plane over the keyframe's."""
+    at = np.array([i for i, _ in keys])
+    seg = np.searchsorted(at, np.asarray(index), side="right") - 1
+    out = []
+    for a, (_, key) in enumerate(keys):
+        rows = np.flatnonzero(seg == a)
+        n, dk = key.plane.normal, key.plane.distance
+        # the frame camera's centre in the keyframe's: key_from_cam's translation
+        c = np.einsum("ij,njk->nik", se3_inv(key.world_from_key), world_from_cam[rows])[:, :3, 3]
+        r = (dk - c @ n) / dk
+        r = r[np.isfinite(r) & (r > 0.5) & (r < 2.0)]
+        out.append(float(np.mean(np.log(r))) if len(r) else 0.0)
+    return out
 
 
 def smoothed_key_poses(keys: Sequence[Anchored], planes: Sequence[Plane]) -> np.ndarray:
@@ -89,7 +189,7 @@ def smoothed_poses(index: Sequence[int], world_from_cam: np.ndarray,
         return W.copy()
     at = np.array([i for i, _ in keys])
     anchored = [k for _, k in keys]
-    planes = smoothed_planes(anchored)
+    planes = smoothed_planes(anchored, segment_lifts(index, W, keys))
     key_poses = smoothed_key_poses(anchored, planes)
     seg = np.searchsorted(at, np.asarray(index), side="right") - 1
     out = W.copy()
@@ -116,3 +216,8 @@ class Hindsight:
     def poses(self, index: Sequence[int], world_from_cam: np.ndarray) -> np.ndarray:
         """:func:`smoothed_poses` of the frames ``index`` over the keyframes added so far."""
         return smoothed_poses(index, world_from_cam, sorted(self._keys.items()))
+
+    def lifts(self, index: Sequence[int], world_from_cam: np.ndarray) -> dict[int, float]:
+        """:func:`segment_lifts` by keyframe index, for the terrain products' planes."""
+        keys = sorted(self._keys.items())
+        return dict(zip((i for i, _ in keys), segment_lifts(index, world_from_cam, keys)))

@@ -215,10 +215,21 @@ class PlaneLink:
     (Rauch-Tung-Striebel): ``innovation`` (3,) the MAP's chart coordinates at the carried
     plane, ``gain`` (3, 3) the previous keyframe's smoother gain ``P_k J^T P_pred^-1`` (P_k its
     plane's covariance, J the plane block of :func:`propagation_jacobian`, P_pred the carried
-    plane's covariance with the process noise)."""
+    plane's covariance with the process noise).
+
+    For re-solving the distances in hindsight (:func:`monovo_cli.core.hindsight.smoothed_distances`):
+    ``carried_distance`` (m) the carried plane's distance, ``carried_variance`` (m^2) the
+    variance that carrying added to it (the motion's error, the tilt's, the process noise:
+    the carried plane's distance variance less the previous keyframe's own, scaled),
+    ``previous_variance`` (m^2) the previous keyframe's distance variance when it was left,
+    and ``mounting`` the mounting prior's ``(distance, std)`` (m). NaN: not recorded."""
 
     gain: np.ndarray
     innovation: np.ndarray
+    carried_distance: float = math.nan
+    carried_variance: float = math.nan
+    previous_variance: float = math.nan
+    mounting: tuple[float, float] = (math.nan, math.nan)
 
 
 def smoothed_corrections(links: Sequence[PlaneLink | None]) -> list[np.ndarray]:

@@ -138,7 +138,13 @@ class PlaneTracker:
             J = propagation_jacobian(key.plane, cur_from_key)[1][:, :3]
             predicted = carried.covariance + process_noise(distance_change, tilt_change)
             link = PlaneLink(self.covariance @ J.T @ np.linalg.inv(predicted),
-                             to_chart(carried.plane, belief.plane))
+                             to_chart(carried.plane, belief.plane),
+                             carried_distance=carried.plane.distance,
+                             carried_variance=float(predicted[0, 0]
+                                                    - J[0, 0] ** 2 * self.covariance[0, 0]),
+                             previous_variance=float(self.covariance[0, 0]),
+                             mounting=(self.mounting.plane.distance,
+                                       float(np.sqrt(self.mounting.covariance[0, 0]))))
         except (ValueError, np.linalg.LinAlgError):
             return key.plane.in_frame(cur_from_key), None, fit.gain, fit.bias, None
         self.consistency.reanchored(carried, belief, self.mounting, distance_change)

@@ -108,6 +108,8 @@ class TerrainMap:
         self._last: Keyframe | None = None
         self._last_image: np.ndarray | None = None
         self.refined = 0  # points whose depth the images updated
+        # per keyframe index, its segment's frames' lift (Hindsight.lifts), set before writing
+        self.lifts: dict[int, float] = {}
 
     @property
     def ground_from_world(self) -> np.ndarray:
@@ -156,7 +158,7 @@ class TerrainMap:
         chunks = [self._chunks[k] for k in sorted(self._chunks)]
         if not self.smooth:
             return [(c, c.plane, c.world_from_key) for c in chunks]
-        planes = smoothed_planes(chunks)
+        planes = smoothed_planes(chunks, [self.lifts.get(k, 0.0) for k in sorted(self._chunks)])
         return list(zip(chunks, planes, smoothed_key_poses(chunks, planes)))
 
     def _refine(self, key: Keyframe, image: np.ndarray, cur_from_key: np.ndarray) -> None:

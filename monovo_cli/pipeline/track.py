@@ -294,6 +294,9 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                                gt_poses)
         if terrain is not None:
             terrain.finish(None if last_lost else images.last, results[-1][2])
+            if hindsight is not None:
+                idx, _, raw = zip(*results)
+                terrain.lifts = hindsight.lifts(idx, np.array(raw))
             write_terrain(Path(out_dir), terrain, poses)
     return TrackSummary(len(results), float(np.mean(msds)) if msds else 0.0, seconds, lost,
                         reanchored, dist, Path(out_dir) if out_dir is not None else None, reinit)
