@@ -166,3 +166,32 @@ def test_masked_pixels_are_never_observation_points(drive):
     pts = select_points(img, cfg.camera, plane, corners, level=0, threshold=3.0,
                         max_points=5000, mask=usable)
     assert len(pts) > 500 and pts.uv[:, 1].max() < 100
+
+
+def _reanchors(res) -> int:
+    return [r.status for r in res].count(FrameStatus.REANCHORED)
+
+
+def test_a_shadow_fixed_in_the_image_does_not_re_anchor_every_few_frames(tmp_path):
+    """The rover's own shadow (a dark band over the image's bottom 15 %) mismatches the
+    keyframe wherever the ground slides under it; the robust weights take those points out,
+    and the fit's degradation is judged on the bulk of the points (their robust scale), so
+    the shadow does not re-anchor. Measured over 60 frames: 3 re-anchors with the shadow, 4
+    without; 19 when the degradation was judged on the mean squared difference."""
+    counts = {}
+    for name, kw in (("clean", {}), ("shadow", {"shadow": 0.15})):
+        synthesize(tmp_path / name, preset="drive", frames=60, size=(192, 192), noise_var=10.0,
+                   seed=21, **kw)
+        counts[name] = _reanchors(_track(tmp_path / name))
+    assert counts["shadow"] <= counts["clean"] + 2, counts
+
+
+def test_a_fit_that_degrades_everywhere_re_anchors(drive):
+    """A lens losing focus (every frame blurrier than the last) degrades the fit at all
+    points: the keyframe is renewed when the robust msd doubles (measured: 7 re-anchors over
+    40 frames, 3 without the rule)."""
+    imgs = [f.image for f in FrameSequence(drive / "frames")]
+    blurred = [im if k == 0 else cv2.GaussianBlur(im, (0, 0), 0.12 * k) for k, im in enumerate(imgs)]
+    with_rule = _reanchors(_track(drive, blurred))
+    without = _reanchors(_track(drive, blurred, TrackOptions(reanchor_msd_ratio=float("inf"))))
+    assert with_rule >= without + 3, (with_rule, without)

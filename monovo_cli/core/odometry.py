@@ -40,7 +40,7 @@ from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane_belief import PlaneLink
 from monovo_cli.core.plane_tracker import PlaneTracker
 from monovo_cli.core.relief import Relief, carried, refine_pose_and_relief
-from monovo_cli.core.robust import inlier_fraction
+from monovo_cli.core.robust import inlier_fraction, mad_scale
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
@@ -247,7 +247,7 @@ class Odometry:
         self._recent_msd.append(est.msd)
         self._lost_run = 0
         if self._key_msd is None:
-            self._key_msd = est.msd
+            self._key_msd = _robust_msd(est)
         if reanchor and self._reanchor(index, image, pyr, world_from_cur, plane_cur, plane_cov,
                                        None if relief is None else (relief, cur_from_key), link):
             status = FrameStatus.REANCHORED
@@ -326,7 +326,7 @@ class Odometry:
         """Points leaving the view, the model leaving the image, or the fit degrading."""
         corners_cur = key.corners @ cur_from_key[:3, :3].T + cur_from_key[:3, 3]
         degraded = self._key_msd is not None and \
-            est.msd > self.options.reanchor_msd_ratio * max(self._key_msd, 1.0)
+            _robust_msd(est) > self.options.reanchor_msd_ratio * max(self._key_msd, 1.0)
         return (degraded or est.valid_fraction < self.options.reanchor_fraction
                 or footprint(self.camera, corners_cur) < self.options.min_footprint)
 
@@ -436,3 +436,11 @@ def track(frames: Iterable[tuple[int, float, np.ndarray | None]], camera: Pinhol
             if odo.keyframe is not seen:
                 on_keyframe(seen := odo.keyframe)
         yield res
+
+
+def _robust_msd(est: Estimate) -> float:
+    """The squared robust scale (MAD) of the frame's final differences: the msd of the bulk of
+    the points, which a region the robust weights reject (a shadow, an object) leaves alone."""
+    if est.residuals is None or est.valid is None or not np.any(est.valid):
+        return est.msd
+    return mad_scale(est.residuals, est.valid) ** 2

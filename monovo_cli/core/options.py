@@ -33,8 +33,10 @@ class TrackOptions:
     (the prediction is within a pixel or two).
     Re-anchor when fewer than ``reanchor_fraction`` of the keyframe's points stay in view,
     the model covers < ``min_footprint`` of the image, or the fit has degraded: the frame's
-    msd exceeds ``reanchor_msd_ratio`` times the first msd measured against the keyframe
-    (appearance changes, a surface that is not quite the plane) -- before the loss checks fire.
+    robust msd (the squared MAD scale of its differences) exceeds ``reanchor_msd_ratio``
+    times the first measured against the keyframe (appearance changes, a surface that is not
+    quite the plane) -- before the loss checks fire; a region the robust weights reject (a
+    shadow fixed in the image) does not count.
     Capture range: after a failed prediction, at the standing start and while recovering,
     the rotation search and (``feature_hypothesis``) an ORB + homography motion over the
     known plane (:mod:`monovo_cli.core.features`) each start the direct estimator; the best
