@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from plane_helpers import N0, tilted
 
+from benchmarks.common import motion_errors
 from monovo_cli.core.estimate import estimate_motion
 from monovo_cli.core.keyframe import build_keyframe
 from monovo_cli.core.motion_covariance import (
@@ -17,16 +18,22 @@ from monovo_cli.core.motion_covariance import (
     plane_sensitivity,
     point_sample,
 )
+from monovo_cli.core.odometry import track
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane_belief import (
+    TILT_CHANGE_DEG,
     PlaneBelief,
     carried_plane,
+    exact_covariance,
     mounting_prior,
     to_chart,
 )
 from monovo_cli.geometry.lie import adjoint, make_pose, se3_inv, se3_log, so3_exp
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.image.pyramid import build_pyramid
+from monovo_cli.io.config import load_init
+from monovo_cli.io.formats import read_motion_csv
+from monovo_cli.io.frames import FrameSequence
 from monovo_cli.synth.motion import camera_mount
 from monovo_cli.synth.render import (
     GroundRenderer,
@@ -36,6 +43,7 @@ from monovo_cli.synth.render import (
     ground_region,
 )
 from monovo_cli.synth.texture import GroundTexture, procedural_texture
+from monovo_cli.synth.write import synthesize
 
 
 @pytest.fixture(scope="module")
@@ -146,7 +154,13 @@ def test_plane_consistency_calibrates_distance_and_tilt_by_hand():
     rng = np.random.default_rng(5)
     pc = PlaneConsistency()
     P = np.diag([0.03 ** 2, 1e-8, 1e-8])
-    np.testing.assert_array_equal(pc.reported(P), P)  # nothing seen yet: as it is
+    # nothing seen yet: the distance as it is, the tilt with the filter's process noise; a
+    # plane taken as exact as it is
+    first = pc.reported(P)
+    assert first[0, 0] == P[0, 0] and not first[0, 1:].any()
+    np.testing.assert_allclose(np.diag(first)[1:], 1e-8 + math.radians(TILT_CHANGE_DEG) ** 2)
+    exact = exact_covariance(Plane(N0, 1.5))
+    np.testing.assert_array_equal(pc.reported(exact), exact)
     for _ in range(400):
         _reanchor(pc, rng, nu_d_std=0.02, nu_t_std=math.radians(0.3))
     R = pc.reported(P)
@@ -169,3 +183,28 @@ def test_plane_consistency_ignores_innovations_its_beliefs_explain():
                       mounting_prior(key, 0.05, 3.0), 0.03)
     P = np.diag([1e-4, 1e-6, 1e-6])
     np.testing.assert_allclose(pc.reported(P)[1:, 1:], P[1:, 1:])
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_first_frames_on_rolling_ground_are_covered_before_any_re_anchor(tmp_path, seed):
+    """Before the first re-anchor the tilt's model error is not measured yet; frame 0's plane,
+    corrected to the swell under it, is known to hundredths of a degree, but the ground is
+    not that plane. With the filter's tilt process noise in the reported std the motions
+    before the first re-anchor are within 5 std on every axis (measured: at most 2.8 and 4.2
+    std on these two 30-frame drives at 256², 6.7 and 6.9 without it; 12 on the 512²
+    300-frame drive of benchmarks.terrain)."""
+    seq = tmp_path / "rolling"
+    synthesize(seq, preset="drive", terrain="rolling", frames=30, size=(256, 256), noise_var=10.0,
+               seed=seed)
+    cfg = load_init(seq / "init.yaml")
+    res = list(track(((f.index, f.timestamp, f.image) for f in FrameSequence(seq / "frames")),
+                     cfg.camera, cfg.plane, cfg.region, TrackOptions(),
+                     sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg))
+    _, gt, _ = read_motion_csv(seq / "groundtruth_motion.csv")
+    status = [r.status.value for r in res[1:]]
+    first = status.index("reanchored")
+    assert first >= 4
+    for r, g in zip(res[1:first + 1], gt):
+        e = motion_errors(r.prev_from_cur, g)
+        e[3:] = np.radians(e[3:])
+        assert np.all(np.abs(e) < 5 * r.std), (e / r.std)
