@@ -50,8 +50,9 @@ calibrates it for reporting from how the keyframe planes actually agree at each 
   ground is 0.8-0.9 on the rolling terrain drive (a factor 2.5-5), but the frames are tracked
   against the relief carried from keyframe to keyframe, which takes up much of that error:
   with 0.9 the reported std was twice the errors' spread after the first re-anchor on the
-  rolling and sloped drives (std of error / std 0.35-0.5 on ty, tz and rx), with 2/3 it is
-  0.57-1.27 on all four terrain drives (benchmarks.terrain, docs/benchmarks.md).
+  rolling and sloped drives (std of error / std 0.35-0.5 on ty, tz and rx); with 2/3 (and
+  the tilt noise below) 0.54-1.14 on every axis of the four terrain drives, 0.56-1.91 on
+  another seed's rolling and sloped ones (benchmarks.terrain, docs/benchmarks.md).
 
 Before the first re-anchor the tilt's model error is not measured yet: a plane the images did
 not confirm as exact (:func:`~monovo_cli.core.plane_belief.exact_covariance`) gets the
