@@ -32,7 +32,7 @@ links with the variance the carrying added, and the mounting prior on the mean o
 ``log d_f`` over each keyframe's segment (:func:`segment_lifts`) with the prior's own std
 (the frames of a segment are not independent samples: together they weigh as one). On the
 flat bobbing drive the final error goes from 0.066 to 0.024 % (keyframe 0's distance from
-1.1 cm off to 0.06 cm). The tilts keep the backward pass's (they hardly move).
+1.1 cm off to 0.14 cm). The tilts keep the backward pass's (they hardly move).
 
 ``motion.csv`` is written as frames are done and stays causal; trajectory.csv, .tum and the
 terrain products (:mod:`monovo_cli.core.terrain_map`) are written with these poses.
@@ -100,7 +100,8 @@ def smoothed_distances(keys: Sequence[Anchored],
         off[k] -= w
         rhs[k] += w * c
         rhs[k - 1] -= w * c
-        starts = k == 1 or keys[k - 1].link is None
+        before = keys[k - 1].link
+        starts = k == 1 or before is None or not np.isfinite(before.carried_distance)
         if starts and link.previous_variance < 1e-2 * sigma ** 2:  # held (exact)
             wp = d[k - 1] ** 2 / max(link.previous_variance, 1e-18)
             diag[k - 1] += wp
