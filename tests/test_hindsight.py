@@ -13,9 +13,13 @@ from monovo_cli.core.hindsight import (
     smoothed_distances,
     smoothed_poses,
 )
+from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane_belief import PlaneLink
 from monovo_cli.geometry.lie import make_pose, se3_inv, so3_exp
 from monovo_cli.geometry.plane import Plane
+from monovo_cli.io.formats import read_tum
+from monovo_cli.pipeline.track import track_sequence
+from monovo_cli.synth.write import synthesize
 
 
 def drive(n: int) -> np.ndarray:
@@ -132,3 +136,14 @@ def test_a_keyframe_plane_confirmed_as_exact_is_held_in_hindsight():
     d = smoothed_distances(anchored, segment_lifts(range(30), est, keys))
     assert d[0] == pytest.approx(1.5, abs=1e-9)
     assert 1.5 < d[1] < d[2] < 1.53
+
+
+def test_the_summary_s_path_is_the_written_trajectory_s(tmp_path):
+    """`monovo track` prints the path length of trajectory.csv (re-scaled in hindsight), not
+    of motion.csv's motions composed."""
+    synthesize(tmp_path / "seq", preset="drive", terrain="flat", frames=30, size=(192, 192),
+               noise_var=10.0, seed=4)
+    s = track_sequence(tmp_path / "seq", None, tmp_path / "out", TrackOptions())
+    _, traj = read_tum(tmp_path / "out" / "trajectory.tum")
+    path = float(np.sum(np.linalg.norm(np.diff(traj[:, :3, 3], axis=0), axis=1)))
+    assert s.distance_m == pytest.approx(path, rel=1e-6)

@@ -290,6 +290,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     seconds = time.perf_counter() - t0
     if out_dir is not None:
         poses = final_poses()
+        # the path of the trajectory written (re-scaled in hindsight), as trajectory.png's
+        dist = float(np.sum(np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1)))
         write_trajectory_plot(Path(out_dir), cfg.plane, [i for i, _, _ in results], poses,
                                gt_poses)
         if terrain is not None:
