@@ -186,7 +186,9 @@ class Estimate:
     scale-normalised normal matrix. ``weights`` (N,) float32 are the finest level's final
     robust weights (0 at invalid points) and ``normal`` the (P, P) normal matrix ``J^T W J``
     behind ``covariance`` (P = 8 with the brightness model, else 6), for propagating other
-    errors through the estimate (:mod:`monovo_cli.core.motion_covariance`).
+    errors through the estimate (:mod:`monovo_cli.core.motion_covariance`); ``scale`` (grey
+    levels) the robust scale (MAD) of the final differences those weights were made with
+    (None where there were too few points).
     """
 
     cur_from_key: np.ndarray
@@ -204,6 +206,7 @@ class Estimate:
     finest_iterations: int = 0
     weights: np.ndarray | None = None
     normal: np.ndarray | None = None
+    scale: float | None = None
 
 
 def residuals(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float = 1.0,
@@ -396,10 +399,11 @@ def estimate_motion(levels: Sequence[KeyLevel], pyramid: Sequence[np.ndarray],
     msd = _msd(r, nv)
     cov = np.full((6, 6), np.inf)
     cond = float("inf")
-    w = H = None
+    w = H = scale = None
     if nv >= max(opts.min_valid_points, npar):
+        scale = mad_scale(r, valid)
         w = robust_weights(r, opts.robust, huber_k=opts.huber_k, tukey_c=opts.tukey_c,
-                           scale=mad_scale(r, valid))[0]
+                           scale=scale)[0]
         w *= valid
         H = res.H
         if H is None:
@@ -419,4 +423,4 @@ def estimate_motion(levels: Sequence[KeyLevel], pyramid: Sequence[np.ndarray],
             pass
     converged = bool(nv >= opts.min_valid_points and np.all(np.isfinite(T)))
     return Estimate(T, cov, msd, total, nv, nv / max(len(valid), 1), converged, cond,
-                    float(gain), float(bias), res.r, valid, res.iterations, w, H)
+                    float(gain), float(bias), res.r, valid, res.iterations, w, H, scale)

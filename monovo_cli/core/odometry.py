@@ -40,7 +40,7 @@ from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane_belief import PlaneLink
 from monovo_cli.core.plane_tracker import PlaneTracker
 from monovo_cli.core.relief import Relief, carried, refine_pose_and_relief
-from monovo_cli.core.robust import inlier_fraction, mad_scale
+from monovo_cli.core.robust import inlier_fraction
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
@@ -439,8 +439,7 @@ def track(frames: Iterable[tuple[int, float, np.ndarray | None]], camera: Pinhol
 
 
 def _robust_msd(est: Estimate) -> float:
-    """The squared robust scale (MAD) of the frame's final differences: the msd of the bulk of
-    the points, which a region the robust weights reject (a shadow, an object) leaves alone."""
-    if est.residuals is None or est.valid is None or not np.any(est.valid):
-        return est.msd
-    return mad_scale(est.residuals, est.valid) ** 2
+    """The squared robust scale (MAD) of the frame's final differences (``Estimate.scale``):
+    the msd of the bulk of the points, which a region the robust weights reject (a shadow, an
+    object) leaves alone; the msd where the estimate has no scale."""
+    return est.msd if est.scale is None else est.scale ** 2
