@@ -167,6 +167,11 @@ def match_timestamps(ts_est: np.ndarray, ts_gt: np.ndarray, *, max_dt: float | N
     return oe[keep], og[near[keep]]
 
 
+def path_length(world_from_cam: np.ndarray) -> float:
+    """The length (m) of the camera path through poses (N, 4, 4): the sum of the steps."""
+    return float(np.linalg.norm(np.diff(world_from_cam[:, :3, 3], axis=0), axis=1).sum())
+
+
 def relative_motion_errors(est_world_from_cam: np.ndarray,
                            gt_world_from_cam: np.ndarray) -> np.ndarray:
     """Signed per-axis errors (N-1, 6) of consecutive relative motions: translation (m) and
@@ -271,7 +276,7 @@ def evaluate(ts_est: np.ndarray, est_world_from_cam: np.ndarray, ts_gt: np.ndarr
     g_end = se3_inv(gt[0]) @ gt[-1]
     drift = float(np.linalg.norm(e_end[:3, 3] - g_end[:3, 3]))
     rot = float(np.degrees(np.linalg.norm(so3_log(g_end[:3, :3].T @ e_end[:3, :3]))))
-    dist = float(np.linalg.norm(np.diff(gt[:, :3, 3], axis=0), axis=1).sum())
+    dist = path_length(gt)
     return Evaluation(
         poses=len(ie),
         relative_mean=rel.mean(axis=0),

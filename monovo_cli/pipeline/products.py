@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from monovo_cli.core.evaluate import path_length
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.core.terrain_map import TerrainMap
 from monovo_cli.geometry.plane import Plane
@@ -46,7 +47,7 @@ def write_trajectory_plot(out_dir: Path, plane: Plane, index: list[int], poses: 
     gt = None
     if groundtruth is not None:
         gt = se3_inv(groundtruth[0]) @ groundtruth
-    dist = float(np.sum(np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1)))
+    dist = path_length(poses)
     title = f"{out_dir.name}: {len(poses)} frames, path {dist:.2f} m"
     write_png_atomic(out_dir / "trajectory.png",
                      plot_trajectory(poses, plane, statuses=statuses, groundtruth=gt,

@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from monovo_cli.core.evaluate import path_length
 from monovo_cli.core.hindsight import Hindsight
 from monovo_cli.core.keyframe import Keyframe, build_keyframe
 from monovo_cli.core.odometry import FrameResult, track
@@ -291,7 +292,7 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     if out_dir is not None:
         poses = final_poses()
         # the path of the trajectory written (re-scaled in hindsight), as trajectory.png's
-        dist = float(np.sum(np.linalg.norm(np.diff(poses[:, :3, 3], axis=0), axis=1)))
+        dist = path_length(poses)
         write_trajectory_plot(Path(out_dir), cfg.plane, [i for i, _, _ in results], poses,
                                gt_poses)
         if terrain is not None:
