@@ -144,23 +144,37 @@ def smoothed_planes(keys: Sequence[Anchored], lifts: Sequence[float] | None = No
     return out
 
 
-def segment_lifts(index: Sequence[int], world_from_cam: np.ndarray,
-                  keys: Sequence[tuple[int, Anchored]]) -> list[float]:
-    """Per keyframe of ``keys`` (``(frame index, keyframe)``, oldest first), the mean over the
-    frames ``index`` of its segment, at poses ``world_from_cam`` (N, 4, 4), of ``log(d_f /
-    d_k)``: the frame camera's distance to the keyframe's plane over the keyframe's."""
+def _segments(index: Sequence[int], world_from_cam: np.ndarray,
+              keys: Sequence[tuple[int, Anchored]]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Per keyframe of ``keys`` (``(frame index, keyframe)``, oldest first): the rows of the
+    frames ``index`` in its segment (from it to the next keyframe) and their poses
+    ``world_from_cam`` (N, 4, 4) in its camera, ``key_from_cam`` (n, 4, 4)."""
     at = np.array([i for i, _ in keys])
     seg = np.searchsorted(at, np.asarray(index), side="right") - 1
     out = []
     for a, (_, key) in enumerate(keys):
         rows = np.flatnonzero(seg == a)
-        n, dk = key.plane.normal, key.plane.distance
-        # the frame camera's centre in the keyframe's: key_from_cam's translation
-        c = np.einsum("ij,njk->nik", se3_inv(key.world_from_key), world_from_cam[rows])[:, :3, 3]
-        r = (dk - c @ n) / dk
-        r = r[np.isfinite(r) & (r > 0.5) & (r < 2.0)]
-        out.append(float(np.mean(np.log(r))) if len(r) else 0.0)
+        out.append((rows, np.einsum("ij,njk->nik", se3_inv(key.world_from_key),
+                                    world_from_cam[rows])))
     return out
+
+
+def _lift(key: Anchored, key_from_cam: np.ndarray) -> float:
+    """The mean of ``log(d_f / d_k)`` over a segment's frames at ``key_from_cam`` (n, 4, 4):
+    each frame camera's distance to the keyframe's plane over the keyframe's."""
+    n, dk = key.plane.normal, key.plane.distance
+    r = (dk - key_from_cam[:, :3, 3] @ n) / dk
+    r = r[np.isfinite(r) & (r > 0.5) & (r < 2.0)]
+    return float(np.mean(np.log(r))) if len(r) else 0.0
+
+
+def segment_lifts(index: Sequence[int], world_from_cam: np.ndarray,
+                  keys: Sequence[tuple[int, Anchored]]) -> list[float]:
+    """Per keyframe of ``keys`` (``(frame index, keyframe)``, oldest first), the mean over the
+    frames ``index`` of its segment, at poses ``world_from_cam`` (N, 4, 4), of ``log(d_f /
+    d_k)``: the frame camera's distance to the keyframe's plane over the keyframe's."""
+    return [_lift(key, rel) for (_, key), (_, rel) in
+            zip(keys, _segments(index, world_from_cam, keys))]
 
 
 def smoothed_key_poses(keys: Sequence[Anchored], planes: Sequence[Plane]) -> np.ndarray:
@@ -188,17 +202,14 @@ def smoothed_poses(index: Sequence[int], world_from_cam: np.ndarray,
     W = np.asarray(world_from_cam, dtype=float)
     if not keys:
         return W.copy()
-    at = np.array([i for i, _ in keys])
     anchored = [k for _, k in keys]
-    planes = smoothed_planes(anchored, segment_lifts(index, W, keys))
+    segments = _segments(index, W, keys)
+    planes = smoothed_planes(anchored, [_lift(k, rel) for k, (_, rel) in zip(anchored, segments)])
     key_poses = smoothed_key_poses(anchored, planes)
-    seg = np.searchsorted(at, np.asarray(index), side="right") - 1
     out = W.copy()
-    for a, key in enumerate(anchored):
-        rows = np.flatnonzero(seg == a)
+    for a, (key, (rows, rel)) in enumerate(zip(anchored, segments)):
         if not len(rows):
             continue
-        rel = np.einsum("ij,njk->nik", se3_inv(key.world_from_key), W[rows])
         rel[:, :3, 3] *= planes[a].distance / key.plane.distance
         out[rows] = np.einsum("ij,njk->nik", key_poses[a], rel)
     return out
