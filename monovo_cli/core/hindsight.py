@@ -194,20 +194,23 @@ def smoothed_key_poses(keys: Sequence[Anchored], planes: Sequence[Plane]) -> np.
 
 
 def smoothed_poses(index: Sequence[int], world_from_cam: np.ndarray,
-                   keys: Sequence[tuple[int, Anchored]]) -> np.ndarray:
+                   keys: Sequence[tuple[int, Anchored]], *, segments: bool = True) -> np.ndarray:
     """(N, 4, 4) the poses ``world_from_cam`` (N, 4, 4) of frames ``index`` (N,), in order,
     re-scaled with the smoothed planes of ``keys`` (``(frame index, keyframe)``, oldest
     first): each frame's motion from the latest keyframe at or before it scaled by that
-    keyframe's ``d' / d``. Frames before the first keyframe keep their poses."""
+    keyframe's ``d' / d``. Frames before the first keyframe keep their poses. ``segments``
+    False: the mounting prior at the keyframes alone, as the filter had it (for comparison,
+    ``benchmarks.hindsight``)."""
     W = np.asarray(world_from_cam, dtype=float)
     if not keys:
         return W.copy()
     anchored = [k for _, k in keys]
-    segments = _segments(index, W, keys)
-    planes = smoothed_planes(anchored, [_lift(k, rel) for k, (_, rel) in zip(anchored, segments)])
+    parts = _segments(index, W, keys)
+    lifts = [_lift(k, rel) for k, (_, rel) in zip(anchored, parts)] if segments else None
+    planes = smoothed_planes(anchored, lifts)
     key_poses = smoothed_key_poses(anchored, planes)
     out = W.copy()
-    for a, (key, (rows, rel)) in enumerate(zip(anchored, segments)):
+    for a, (key, (rows, rel)) in enumerate(zip(anchored, parts)):
         if not len(rows):
             continue
         rel[:, :3, 3] *= planes[a].distance / key.plane.distance
