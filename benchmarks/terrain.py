@@ -3,6 +3,7 @@
     python -m benchmarks.terrain                      # 4 drives of 300 frames (~15 min)
     python -m benchmarks.terrain --frames 100 --cases flat rolling
     python -m benchmarks.terrain --frames 150 --seed 1 --cases rolling slope --plane-only
+    python -m benchmarks.terrain --seed 3 --texture gravel --cases flat rolling
 
 Each case is a ``monovo synth --preset drive --terrain KIND`` sequence (512x512, noise
 variance 10, rendered by ray casting; the rover's body lies on the ground under its wheels
@@ -89,13 +90,14 @@ def terrain_errors(seq: Path, out: Path) -> tuple[float, float, float, float]:
 
 
 def run_case(root: Path, kind: str, frames: int, seed: int, renders: Path | None = None,
-             options: TrackOptions | None = None) -> dict:
+             options: TrackOptions | None = None, texture: str | None = None) -> dict:
     """Render one terrain drive (or reuse it from ``renders``), track it with monovo and ECC;
-    the figures of one table row."""
-    seq = (renders or root) / f"{kind}_{frames}_{seed}"
+    the figures of one table row. ``texture``: ``synth --texture`` (None: the procedural one)."""
+    tag = "" if texture is None else "_" + Path(texture).stem
+    seq = (renders or root) / f"{kind}_{frames}_{seed}{tag}"
     if not (seq / "groundtruth.tum").exists():
         synthesize(seq, preset="drive", terrain=kind, frames=frames, size=SIZE,
-                   noise_var=NOISE_VAR, seed=seed)
+                   noise_var=NOISE_VAR, seed=seed, texture=texture)
     out = root / f"{kind}_out"
     mono = monovo_on_drive(seq, out, options or TrackOptions(), terrain_out=True, overwrite=True)
     heights = terrain_errors(seq, out)
@@ -157,20 +159,24 @@ def main() -> None:
     ap.add_argument("--renders", type=Path, default=None,
                     help="keep the rendered drives in this folder and reuse them on the next run "
                          "[default: a temporary folder]")
+    ap.add_argument("--texture", default=None,
+                    help="the ground's texture, as `synth --texture`: gravel, or an image file "
+                         "(e.g. a frame of ../shared/real, a texture nothing was tuned on)")
     ap.add_argument("--plane-only", action="store_true",
                     help="monovo with --plane-only (the paper's one plane per keyframe, no relief)")
     args = ap.parse_args()
     one_core()
     print(f"Machine: {machine()}; {load()} at the start\n")
     print(f"Drives: `monovo synth --preset drive --terrain KIND --frames {args.frames} --seed "
-          f"{args.seed}` ({SIZE[0]}x{SIZE[1]}, noise variance {NOISE_VAR:g}); monovo with "
+          f"{args.seed}{f' --texture {args.texture}' if args.texture else ''}` "
+          f"({SIZE[0]}x{SIZE[1]}, noise variance {NOISE_VAR:g}); monovo with "
           f"{'--plane-only' if args.plane_only else 'default options'}, end to end; ECC on the "
           "same PNGs. One core.\n")
     results = []
     with tempfile.TemporaryDirectory() as tmp:
         for kind in args.cases:
             results.append(run_case(Path(tmp), kind, args.frames, args.seed, args.renders,
-                                    TrackOptions(relief=not args.plane_only)))
+                                    TrackOptions(relief=not args.plane_only), args.texture))
             print(f"({kind} done, {load()})", flush=True)
     print()
     print(table(results))
