@@ -43,7 +43,7 @@ import numpy as np
 from benchmarks.common import AXES, load, machine, motion_errors, one_core, pair_scenes
 from benchmarks.crb import QUANTISATION_VAR, bound_levels, bound_std, information
 from benchmarks.real_synth import NOISE_VAR, PAIR_SEED, RENDERS, crb_stds, rendered, rock_png
-from monovo_cli.core.estimate import residuals
+from monovo_cli.core.estimator.estimate import residuals
 from monovo_cli.core.keyframe import build_keyframe
 from monovo_cli.core.odometry import track
 from monovo_cli.core.options import TrackOptions

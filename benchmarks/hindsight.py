@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import final_drift, load, machine, one_core
-from monovo_cli.core.hindsight import KeyRecord, segment_lifts, smoothed_distances, smoothed_poses
+from monovo_cli.mapping.hindsight import KeyRecord, segment_lifts, smoothed_distances, smoothed_poses
 from monovo_cli.core.odometry import track
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.geometry.lie import se3_inv

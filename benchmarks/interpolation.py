@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import AXES, axis_table, machine, motion_errors, one_core
-from monovo_cli.core.estimate import EstimatorOptions, residuals
+from monovo_cli.core.estimator.estimate import EstimatorOptions, residuals
 from monovo_cli.core.keyframe import build_keyframe
 from monovo_cli.core.odometry import track
 from monovo_cli.core.options import ALL_POINTS, TrackOptions

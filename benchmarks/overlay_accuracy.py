@@ -92,7 +92,7 @@ def evo_check(est_path: Path, gt_path: Path) -> list[tuple[str, float, float]] |
         from evo.tools import file_interface
     except ImportError:
         return None
-    from monovo_cli.core.evaluate import evaluate
+    from monovo_cli.evaluation.metrics import evaluate
 
     ts_e, e = read_tum(est_path)
     ts_g, g = read_tum(gt_path)

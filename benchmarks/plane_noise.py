@@ -3,7 +3,7 @@
     python -m benchmarks.plane_noise                         # 0, 0.5 and 1 deg (~45 min)
     python -m benchmarks.plane_noise --tilts 0 0.5 --cases rolling --frames 100
 
-For each value of :data:`monovo_cli.core.plane_belief.TILT_CHANGE_DEG` (the std of each tilt
+For each value of :data:`monovo_cli.core.plane.belief.TILT_CHANGE_DEG` (the std of each tilt
 angle's process noise per keyframe, see docs/algorithm.md "The new keyframe's plane"), every
 sequence is tracked end to end with default options otherwise (``pipeline.track``, one core):
 the real sequences of ``../shared/real`` (``--real DIR`` elsewhere; skipped, with a line

@@ -14,7 +14,7 @@ Sections (each prints one markdown table; a later one can be added to ``SECTIONS
 ``pairs`` and ``speed``, issue 13's synthetic acceptance runs, are described in
 :mod:`benchmarks.real_synth` and need no real data):
 
-* ``features`` -- the feature hypothesis (:mod:`monovo_cli.core.features`) on every
+* ``features`` -- the feature hypothesis (:mod:`monovo_cli.core.recovery.features`) on every
   consecutive frame pair, given the ground-truth plane in the earlier frame (init.yaml's
   plane carried with the ground-truth poses) and init.yaml's region, as the tracker gives
   it a keyframe. Per setting: the share of pairs with a hypothesis, the median and 90th
@@ -49,7 +49,7 @@ import numpy as np
 
 from benchmarks import real_synth
 from benchmarks.common import Stopwatch, final_drift, load, machine, one_core
-from monovo_cli.core.features import (
+from monovo_cli.core.recovery.features import (
     CHEAP,
     CUR_DEPRESSION_DEG,
     FeatureOptions,

@@ -21,7 +21,7 @@ decoding included, on one core), and the ECC peer of ``benchmarks.peers`` runs o
 PNGs in the same run (it carries init.yaml's plane with its own motions). Reported per
 method: the final position error (% of the distance) of trajectory.tum, and for monovo also
 of motion.csv's motions composed (as streamed; trajectory.tum is re-scaled in hindsight with
-the smoothed keyframe planes, ``monovo_cli.core.hindsight``), the final heading error (the angle of
+the smoothed keyframe planes, ``monovo_cli.mapping.hindsight``), the final heading error (the angle of
 the final pose's rotation error), the scale ratio (estimated / true length of the per-frame
 translations, over the whole drive and over its last third: a creeping scale shows as a
 difference), the mean absolute per-frame errors, lost (monovo) or failed (ECC) frames and

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from monovo_cli.core.plane_belief import tangent_basis
+from monovo_cli.geometry.plane import tangent_basis
 from monovo_cli.geometry.lie import so3_exp
 from monovo_cli.geometry.plane import Plane
 

@@ -15,11 +15,12 @@ LAYERS = {
     "geometry": 1,
     "image": 2,
     "core": 3,
-    "io": 4,
-    "viz": 5, "synth": 5,  # siblings: neither imports the other
-    "pipeline": 6,
-    "cli": 7,
-    "__main__": 8,  # python -m monovo_cli: calls the CLI
+    "mapping": 4, "evaluation": 4,  # siblings: after the run, and against ground truth
+    "io": 5,
+    "viz": 6, "synth": 6,  # siblings: neither imports the other
+    "pipeline": 7,
+    "cli": 8,
+    "__main__": 9,  # python -m monovo_cli: calls the CLI
 }
 MAX_LINES = 400
 LONG_MARK = "Long module:"  # a module above MAX_LINES says why at its top, after this mark
@@ -108,4 +109,29 @@ def test_the_core_does_no_io_and_no_cli():
             names = ([a.name for a in node.names] if isinstance(node, ast.Import)
                      else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
             bad += [f"{mod}: {n}" for n in names if n.split(".")[0] in ("click", "tqdm")]
+    assert not bad, bad
+
+
+CORE_ROOMS = ("estimator", "plane", "recovery")
+MAX_CORE_MODULES = 8
+
+
+def test_core_is_in_rooms():
+    """core/ keeps the sequence loop at its top and its jobs in rooms of their own."""
+    top = sorted(p.stem for p in (PKG / "core").glob("*.py") if p.stem != "__init__")
+    assert len(top) <= MAX_CORE_MODULES, f"core/ has {len(top)} modules at its top: {top}"
+    for room in CORE_ROOMS:
+        assert (PKG / "core" / room / "__init__.py").is_file(), f"core/{room}/ is missing"
+    assert (PKG / "mapping").is_dir() and (PKG / "evaluation").is_dir()
+
+
+def test_the_estimator_stands_alone():
+    """core/estimator/ (one frame against one keyframe) needs no other part of the core but
+    the options: the plane filter and the recovery build on it, never the other way."""
+    bad = []
+    for mod, deps in _graph().items():
+        if not mod.startswith("monovo_cli.core.estimator"):
+            continue
+        bad += [f"{mod} -> {d}" for d in deps if d.startswith("monovo_cli.core.")
+                and not d.startswith("monovo_cli.core.estimator") and d != "monovo_cli.core.options"]
     assert not bad, bad

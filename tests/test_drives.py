@@ -9,8 +9,8 @@ import pytest
 from click.testing import CliRunner
 
 from monovo_cli.cli import main
-from monovo_cli.core.estimate import KeyLevel, estimate_motion
-from monovo_cli.core.ground import rectangle_corners, select_points
+from monovo_cli.core.estimator.estimate import KeyLevel, estimate_motion
+from monovo_cli.core.estimator.ground import rectangle_corners, select_points
 from monovo_cli.core.odometry import Odometry, OdometryState, track
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.status import FrameStatus

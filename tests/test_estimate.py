@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from monovo_cli.core.jacobian import distortion_jacobian, observation_matrix
+from monovo_cli.core.estimator.jacobian import distortion_jacobian, observation_matrix
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import se3_exp
 from monovo_cli.image.sampling import sample_bilinear
@@ -165,8 +165,8 @@ def test_spline_gradient_is_exact_on_a_cubic_polynomial():
 
 def _plane_level(cam, rng, n=400):
     """A KeyLevel of random keyframe pixels lifted onto a tilted plane in front of ``cam``."""
-    from monovo_cli.core.estimate import KeyLevel
-    from monovo_cli.core.ground import LevelPoints
+    from monovo_cli.core.estimator.estimate import KeyLevel
+    from monovo_cli.core.estimator.ground import LevelPoints
     from monovo_cli.geometry.plane import Plane
 
     plane = Plane(np.array([0.0, -0.6, 0.8]) / np.linalg.norm([0.0, -0.6, 0.8]), 4.0)
@@ -191,7 +191,7 @@ def test_homography_warp_equals_moving_and_projecting_the_points(seed):
 
 def test_points_behind_the_camera_are_invalid():
     """A pose that puts part of the plane behind the camera: those points are not sampled."""
-    from monovo_cli.core.estimate import residuals
+    from monovo_cli.core.estimator.estimate import residuals
 
     rng = np.random.default_rng(8)
     cam = PinholeCamera(640, 480, 600.0, 610.0, 319.5, 239.5)

@@ -1,4 +1,4 @@
-"""The feature-based motion hypothesis (monovo_cli.core.features) against rendered ground truth.
+"""The feature-based motion hypothesis (monovo_cli.core.recovery.features) against rendered ground truth.
 
 MER spacing: a mast camera 1.5 m above the ground, pitched 45 deg down, 45 deg field of view,
 0.6-0.75 m forward steps and 12-18 deg turns in place -- motions far outside the direct
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from benchmarks.common import MER_HEIGHT, mer_camera, mer_pose, mer_renderer
-from monovo_cli.core.features import (
+from monovo_cli.core.recovery.features import (
     CHEAP,
     FeatureOptions,
     detect_features,

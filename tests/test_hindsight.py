@@ -1,4 +1,4 @@
-"""The poses re-scaled in hindsight (monovo_cli.core.hindsight), against hand-made chains."""
+"""The poses re-scaled in hindsight (monovo_cli.mapping.hindsight), against hand-made chains."""
 
 import math
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from plane_helpers import N0
 
-from monovo_cli.core.hindsight import (
+from monovo_cli.mapping.hindsight import (
     Hindsight,
     KeyRecord,
     segment_lifts,
@@ -14,7 +14,7 @@ from monovo_cli.core.hindsight import (
     smoothed_poses,
 )
 from monovo_cli.core.options import TrackOptions
-from monovo_cli.core.plane_belief import PlaneLink
+from monovo_cli.core.plane.belief import PlaneLink
 from monovo_cli.geometry.lie import make_pose, se3_inv, so3_exp
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.formats import read_tum

@@ -1,4 +1,4 @@
-"""The keyframe plane's error in the reported motion covariance (core/motion_covariance.py):
+"""The keyframe plane's error in the reported motion covariance (core/plane/motion_covariance.py):
 the sensitivity against re-estimation on rendered images, the distance part against the exact
 scale, and the re-anchor calibration by hand."""
 
@@ -9,9 +9,9 @@ import pytest
 from plane_helpers import N0, tilted
 
 from benchmarks.common import motion_errors
-from monovo_cli.core.estimate import estimate_motion
+from monovo_cli.core.estimator.estimate import estimate_motion
 from monovo_cli.core.keyframe import build_keyframe
-from monovo_cli.core.motion_covariance import (
+from monovo_cli.core.plane.motion_covariance import (
     TILT_PERSISTENCE,
     MotionCovariance,
     PlaneConsistency,
@@ -20,7 +20,7 @@ from monovo_cli.core.motion_covariance import (
 )
 from monovo_cli.core.odometry import track
 from monovo_cli.core.options import TrackOptions
-from monovo_cli.core.plane_belief import (
+from monovo_cli.core.plane.belief import (
     TILT_CHANGE_DEG,
     PlaneBelief,
     carried_plane,

@@ -16,7 +16,7 @@ import pytest
 from click.testing import CliRunner
 
 from monovo_cli.cli import main
-from monovo_cli.core.terrain_map import HeightGrid, ground_frame
+from monovo_cli.mapping.terrain_map import HeightGrid, ground_frame
 from monovo_cli.errors import InputError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import se3_inv

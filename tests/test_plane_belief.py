@@ -7,9 +7,9 @@ import pytest
 import yaml
 from plane_helpers import N0, tilted
 
-from monovo_cli.core.hindsight import Hindsight
+from monovo_cli.mapping.hindsight import Hindsight
 from monovo_cli.core.odometry import Odometry, track
-from monovo_cli.core.plane_belief import (
+from monovo_cli.core.plane.belief import (
     PlaneBelief,
     carried_plane,
     chart_jacobian,
@@ -23,7 +23,7 @@ from monovo_cli.core.plane_belief import (
     to_chart,
     transported,
 )
-from monovo_cli.core.terrain_map import TerrainMap
+from monovo_cli.mapping.terrain_map import TerrainMap
 from monovo_cli.errors import ConfigError
 from monovo_cli.geometry.lie import make_pose, se3_inv, so3_exp
 from monovo_cli.geometry.plane import Plane

@@ -1,4 +1,4 @@
-"""The keyframe relief (core/relief.py): heights over the keyframe plane, solved with the pose.
+"""The keyframe relief (core/estimator/relief.py): heights over the keyframe plane, solved with the pose.
 
 Pinned here: the geometry of a relief (a lifted point stays on its keyframe ray at its
 bilinear height; ``Plane.intersect`` undoes it), the joint Gauss-Newton's derivatives against
@@ -17,13 +17,13 @@ import numpy as np
 import pytest
 from plane_helpers import tilted
 
-from monovo_cli.core.estimate import KeyLevel, estimate_motion
-from monovo_cli.core.ground import LevelPoints
-from monovo_cli.core.jacobian import project_in_front
+from monovo_cli.core.estimator.estimate import KeyLevel, estimate_motion
+from monovo_cli.core.estimator.ground import LevelPoints
+from monovo_cli.core.estimator.jacobian import project_in_front
 from monovo_cli.core.keyframe import build_keyframe
 from monovo_cli.core.odometry import track
 from monovo_cli.core.options import TrackOptions
-from monovo_cli.core.relief import (
+from monovo_cli.core.estimator.relief import (
     MAX_VERTICES_PER_SIDE,
     Relief,
     _curvature_normal,

@@ -9,7 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from monovo_cli.cli import main
-from monovo_cli.core.terrain_map import TerrainMap, ground_frame
+from monovo_cli.mapping.terrain_map import TerrainMap, ground_frame
 from monovo_cli.geometry.lie import make_pose, so3_exp
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.terrain import HEIGHTMAP_HEADER, heightmap_csv_text, ply_bytes, read_ply
@@ -75,7 +75,7 @@ def test_smoothing_puts_a_keyframe_on_the_plane_its_successors_found():
     and delta_0 = 1 * (-0.03 + delta_1) = -0.04: keyframe 0's points land on the plane at
     1.50 m, a point 10 cm off its plane (relief) keeps its height, and the ground frame is
     that plane; without smoothing nothing moves, and the last keyframe never does."""
-    from monovo_cli.core.plane_belief import PlaneLink, smoothed_corrections
+    from monovo_cli.core.plane.belief import PlaneLink, smoothed_corrections
 
     far = Plane(N0, 1.54)
     rays = np.column_stack([np.linspace(-0.5, 0.5, 40), np.linspace(0.1, 0.6, 40), np.ones(40)])
@@ -103,8 +103,8 @@ def test_a_keyframe_is_refined_against_its_successor_only_after_a_re_anchor(monk
     """The sweep runs when a re-anchored keyframe (one with a plane link) follows, not when
     a re-initialised one does (its pose was bridged by the prediction), nor against a lost
     last frame (finish(None, ...))."""
-    import monovo_cli.core.terrain_map as tm
-    from monovo_cli.core.plane_belief import PlaneLink
+    import monovo_cli.mapping.terrain_map as tm
+    from monovo_cli.core.plane.belief import PlaneLink
 
     calls = []
     monkeypatch.setattr(tm, "sweep_depths", lambda cam, plane, X, *a, **k: (calls.append(len(X)) or X,
@@ -187,8 +187,8 @@ def test_depth_refinement_finds_the_ground_a_wrong_plane_missed():
     """Two views of flat ground 0.4 m apart, exact poses; the keyframe's plane is 2 cm too
     far. The 3 x 3 patches move the points that the images constrain (reported std < 1 cm,
     31 % of them) to 0.48 cm RMS off the ground, from 2 cm (all points in view: 0.79 cm)."""
-    from monovo_cli.core.depth import refine_depths
-    from monovo_cli.core.ground import select_points
+    from monovo_cli.mapping.depth import refine_depths
+    from monovo_cli.core.estimator.ground import select_points
     from monovo_cli.geometry.lie import se3_inv
     from monovo_cli.synth.motion import camera_mount
     from monovo_cli.synth.render import GroundRenderer, default_camera, finish_frame, ground_in_camera
@@ -220,8 +220,8 @@ def test_depth_sweep_puts_points_the_relief_misplaced_back_on_the_ground():
     The sweep moves most of them back to within 1 cm and leaves the others where they are
     (measured: 57 % moved, to 0.79 cm RMS; 0.06 % of the others moved). The rest are points
     whose texture runs along their epipolar line: no height is clearly better there."""
-    from monovo_cli.core.depth import sweep_depths
-    from monovo_cli.core.ground import select_points
+    from monovo_cli.mapping.depth import sweep_depths
+    from monovo_cli.core.estimator.ground import select_points
     from monovo_cli.geometry.lie import se3_inv
     from monovo_cli.synth.motion import camera_mount
     from monovo_cli.synth.render import GroundRenderer, default_camera, finish_frame, ground_in_camera

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from monovo_cli.core.ground import barycentric
+from monovo_cli.core.estimator.ground import barycentric
 from monovo_cli.core.keyframe import build_keyframe
 from monovo_cli.core.odometry import track
 from monovo_cli.core.options import TrackOptions

@@ -21,7 +21,7 @@ from monovo_cli.cli.options import LibraryDefault
                    "then every measure uses the scaled estimate). Give it after the files.")
 @click.option("--max-dt", type=click.FloatRange(min=0.0, min_open=True), cls=LibraryDefault,
               default_text=lambda: "{} s, or half the median frame interval if less".format(
-                  importlib.import_module("monovo_cli.core.evaluate").MAX_DT),
+                  importlib.import_module("monovo_cli.evaluation.metrics").MAX_DT),
               help="Match each estimated pose to the true pose nearest in time within this "
                    "many seconds.")
 @click.option("--json", "as_json", is_flag=True, help="Print the measures as JSON.")
@@ -37,7 +37,8 @@ def eval_(verbosity, estimate, groundtruth, align, max_dt, as_json):
       monovo eval out/trajectory.tum demo/groundtruth.tum --align
       monovo eval out/trajectory.tum gps.tum --max-dt 0.05 --align sim3
     """
-    from monovo_cli.core.evaluate import evaluate, format_report
+    from monovo_cli.evaluation.metrics import evaluate
+    from monovo_cli.evaluation.report import format_report
     from monovo_cli.io.formats import read_tum
 
     ts_e, est = read_tum(estimate)

@@ -1,3 +1,4 @@
-"""The estimator, pure (arrays in, arrays out): ground model, one frame's motion, plane
-refinement, the sequence loop, error tables.
+"""The estimator, pure (arrays in, arrays out): the sequence loop and its keyframes
+(top level), one frame's motion (:mod:`.estimator`), the keyframe plane and the reported
+covariance (:mod:`.plane`), and the capture of frames the prediction misses (:mod:`.recovery`).
 """

@@ -2,7 +2,7 @@
 
 :func:`build_keyframe` picks the observation points of every pyramid level of a frame inside
 the ground rectangle, lifts them onto the plane and precomputes their observation rows
-(:class:`~monovo_cli.core.estimate.KeyLevel`); :func:`point_budget` says how many points the
+(:class:`~monovo_cli.core.estimator.estimate.KeyLevel`); :func:`point_budget` says how many points the
 finest level gets, :func:`footprint` how much of an image the model still covers.
 """
 
@@ -14,11 +14,11 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
-from monovo_cli.core.estimate import KeyLevel
-from monovo_cli.core.ground import default_threshold, rectangle_corners, require_points, select_points
+from monovo_cli.core.estimator.estimate import KeyLevel
+from monovo_cli.core.estimator.ground import default_threshold, rectangle_corners, require_points, select_points
 from monovo_cli.core.options import TrackOptions
-from monovo_cli.core.plane_belief import PlaneLink
-from monovo_cli.core.relief import Relief
+from monovo_cli.core.plane.belief import PlaneLink
+from monovo_cli.core.estimator.relief import Relief
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.plane import Plane
@@ -49,7 +49,7 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
     """The ground model of section 10.2.5 on ``image`` (H, W) float32, plane in its camera.
 
     ``surface``, given the finest level's points (N, 3) on the plane, returns the keyframe's
-    relief (:mod:`monovo_cli.core.relief`): every level's points are then lifted onto it.
+    relief (:mod:`monovo_cli.core.estimator.relief`): every level's points are then lifted onto it.
 
     Raises TrackingError when the frame has too few observation points.
     """

@@ -8,7 +8,7 @@ the accumulated motion), so drift grows per keyframe, not per frame. A new keyfr
 anchored on the current frame when too few of the keyframe's points stay in view or the
 model covers too little of the image; its plane is then the MAP of the plane carried by the
 motions, the normal measured from the two images and init.yaml's mounting prior
-(:mod:`monovo_cli.core.plane_tracker`). A frame whose
+(:mod:`monovo_cli.core.plane.tracker`). A frame whose
 estimate fails the divergence checks is marked ``lost``, carries the constant-velocity
 prediction, and the model is re-anchored on the next good frame (:class:`OdometryState`).
 
@@ -32,15 +32,15 @@ from functools import partial
 
 import numpy as np
 
-from monovo_cli.core.bridge import Bridging
-from monovo_cli.core.estimate import Estimate, coarse_search, estimate_motion
+from monovo_cli.core.recovery.bridge import Bridging
+from monovo_cli.core.estimator.estimate import Estimate, coarse_search, estimate_motion
 from monovo_cli.core.keyframe import Keyframe, build_keyframe, footprint
-from monovo_cli.core.motion_covariance import MotionCovariance
+from monovo_cli.core.plane.motion_covariance import MotionCovariance
 from monovo_cli.core.options import TrackOptions
-from monovo_cli.core.plane_belief import PlaneLink
-from monovo_cli.core.plane_tracker import PlaneTracker
-from monovo_cli.core.relief import Relief, carried, refine_pose_and_relief
-from monovo_cli.core.robust import inlier_fraction
+from monovo_cli.core.plane.belief import PlaneLink
+from monovo_cli.core.plane.tracker import PlaneTracker
+from monovo_cli.core.estimator.relief import Relief, carried, refine_pose_and_relief
+from monovo_cli.core.estimator.robust import inlier_fraction
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera

@@ -1,6 +1,6 @@
 """The tracking options, and options dataclasses from plain (JSON-able) dicts.
 
-:class:`TrackOptions` (with the :class:`~monovo_cli.core.estimate.EstimatorOptions` it
+:class:`TrackOptions` (with the :class:`~monovo_cli.core.estimator.estimate.EstimatorOptions` it
 nests) is the one place where a tracking default is written. The command line builds it
 from the options the user gave; ``monovo batch`` sends it to its workers as
 ``dataclasses.asdict(options)`` and rebuilds it there with :func:`options_from_dict`.
@@ -13,7 +13,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
-from monovo_cli.core.estimate import EstimatorOptions
+from monovo_cli.core.estimator.estimate import EstimatorOptions
 
 T = TypeVar("T")
 
@@ -39,7 +39,7 @@ class TrackOptions:
     shadow fixed in the image) does not count.
     Capture range: after a failed prediction, at the standing start and while recovering,
     the rotation search and (``feature_hypothesis``) an ORB + homography motion over the
-    known plane (:mod:`monovo_cli.core.features`) each start the direct estimator; the best
+    known plane (:mod:`monovo_cli.core.recovery.features`) each start the direct estimator; the best
     fit wins. After ``reinit_after`` lost frames in a row a fresh keyframe is anchored on the
     current frame with the mounting plane (status ``reinit``), its pose bridged by the
     prediction.
@@ -49,10 +49,10 @@ class TrackOptions:
     exceeds ``max_step_m`` / ``max_step_deg``.
     With ``relief``, a keyframe that is left gets the heights of its ground off its plane,
     solved with the motion of the frame that leaves it where the images show them
-    (:mod:`monovo_cli.core.relief`); they are carried to the next keyframe.
+    (:mod:`monovo_cli.core.estimator.relief`); they are carried to the next keyframe.
     With ``smooth``, what is written at the end of a run (trajectory.csv / .tum and the
     terrain products) has each keyframe's segment re-scaled with its plane smoothed over the
-    whole drive (:mod:`monovo_cli.core.hindsight`); motion.csv stays causal either way.
+    whole drive (:mod:`monovo_cli.mapping.hindsight`); motion.csv stays causal either way.
     """
 
     levels: int | None = None

@@ -13,7 +13,7 @@ Instead of ``normal`` + ``distance`` the ground may be given as ``height`` (m),
 :mod:`monovo_cli.geometry.plane`; roll 0 gives ``normal = (0, cos p, sin p)``).
 The optional ``sigma_distance`` (m) and ``sigma_deg`` give the width of the mounting prior:
 how far the ground may depart from this plane in any later camera frame (suspension,
-terrain); absent, the tracker's defaults apply (:mod:`monovo_cli.core.plane_belief`).
+terrain); absent, the tracker's defaults apply (:mod:`monovo_cli.core.plane.belief`).
 """
 
 from __future__ import annotations

@@ -68,8 +68,8 @@ def load_model(path: Path):
     :class:`~monovo_cli.geometry.camera.PinholeCamera`, the region (x0, y0, x1, y1) px and the
     frame-0 :class:`~monovo_cli.core.keyframe.Keyframe`. InputError when the file is not a
     model or is damaged."""
-    from monovo_cli.core.estimate import KeyLevel
-    from monovo_cli.core.ground import LevelPoints
+    from monovo_cli.core.estimator.estimate import KeyLevel
+    from monovo_cli.core.estimator.ground import LevelPoints
     from monovo_cli.core.keyframe import Keyframe
     from monovo_cli.geometry.camera import PinholeCamera
     from monovo_cli.geometry.plane import Plane

@@ -5,7 +5,7 @@ in the world frame (camera 0's, m): ``float x, y, z``, ``float intensity`` (grey
 the keyframe image) and ``uchar red, green, blue`` (the same grey, for viewers that show
 colours). ``heightmap.csv``: one row per non-empty cell of the height grid, header
 ``right_m,forward_m,height_m,points,x_m,y_m,z_m``: the cell's centre in the ground frame
-(:mod:`monovo_cli.core.terrain_map`), the mean height of its points above that plane, their
+(:mod:`monovo_cli.mapping.terrain_map`), the mean height of its points above that plane, their
 count, and the cell's centre at that height in the world frame (camera 0's). Both are
 written atomically. :func:`read_heightmap` reads ``heightmap.csv`` back (for ``monovo
 overlay --terrain``): the grid, and the ground frame recovered from the two sets of columns.
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from monovo_cli.core.terrain_map import HeightGrid
+from monovo_cli.mapping.terrain_map import HeightGrid
 from monovo_cli.errors import InputError
 from monovo_cli.io.atomic import atomic_write_bytes, atomic_write_text
 from monovo_cli.io.formats import _csv_rows, _floats

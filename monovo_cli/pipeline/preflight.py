@@ -86,10 +86,10 @@ def existing_results(out_dir: Path, names: Sequence[str]) -> list[str]:
 
 def groundtruth_poses(path: Path, frames: FrameSequence) -> np.ndarray:
     """The ``--groundtruth`` TUM file's poses (M, 4, 4) matched to the frames by timestamp
-    (nearest within :func:`~monovo_cli.core.evaluate.default_max_dt` of the frames), in frame
+    (nearest within :func:`~monovo_cli.evaluation.sync.default_max_dt` of the frames), in frame
     order. InputError when none matches -- the ground truth of another sequence -- and a
     warning when only some do."""
-    from monovo_cli.core.evaluate import default_max_dt, match_timestamps
+    from monovo_cli.evaluation.sync import default_max_dt, match_timestamps
     from monovo_cli.io.formats import read_tum
 
     ts, poses = read_tum(Path(path))

@@ -7,9 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from monovo_cli.core.evaluate import path_length
+from monovo_cli.geometry.trajectory import path_length
 from monovo_cli.core.status import FrameStatus
-from monovo_cli.core.terrain_map import TerrainMap
+from monovo_cli.mapping.terrain_map import TerrainMap
 from monovo_cli.geometry.plane import Plane
 
 

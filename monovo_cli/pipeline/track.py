@@ -6,7 +6,7 @@ files to the pure core (:mod:`monovo_cli.core.odometry`). Rows of motion.csv are
 and flushed as frames are done; trajectory.csv / .tum are written atomically at the end,
 every ``checkpoint_every`` frames, and when the run is interrupted, so they always hold
 exactly the frames done, their poses re-scaled in hindsight over those frames
-(:mod:`monovo_cli.core.hindsight`; ``TrackOptions.smooth``).
+(:mod:`monovo_cli.mapping.hindsight`; ``TrackOptions.smooth``).
 """
 
 from __future__ import annotations
@@ -24,13 +24,13 @@ from pathlib import Path
 
 import numpy as np
 
-from monovo_cli.core.evaluate import path_length
-from monovo_cli.core.hindsight import Hindsight
+from monovo_cli.geometry.trajectory import path_length
+from monovo_cli.mapping.hindsight import Hindsight
 from monovo_cli.core.keyframe import Keyframe, build_keyframe
 from monovo_cli.core.odometry import FrameResult, track
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.status import FrameStatus
-from monovo_cli.core.terrain_map import TerrainMap
+from monovo_cli.mapping.terrain_map import TerrainMap
 from monovo_cli.errors import InputError, OutputError, TrackingError
 from monovo_cli.io.atomic import atomic_write_text
 from monovo_cli.io.config import InitConfig, check_frame_size, load_init

@@ -1,6 +1,6 @@
 """The glued triangle draped over the learned terrain (``monovo overlay --terrain``).
 
-A height map (:class:`~monovo_cli.core.terrain_map.HeightGrid`, ``monovo track
+A height map (:class:`~monovo_cli.mapping.terrain_map.HeightGrid`, ``monovo track
 --terrain-out``) gives heights above the ground plane of its own ground frame
 (``ground_from_world``: right, forward, up; world = camera 0). The triangle on the plane
 (:mod:`monovo_cli.viz.overlay`) is subdivided into ``steps`` x ``steps`` small facets
@@ -30,7 +30,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from monovo_cli.core.terrain_map import HeightGrid
+from monovo_cli.mapping.terrain_map import HeightGrid
 from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.viz.draw import SHIFT
 from monovo_cli.viz.overlay import OverlayRenderer, clip_polygon, frustum_halfspaces

@@ -1,6 +1,6 @@
 """The height map of the driven strip as an image with a colour bar, drawn with OpenCV.
 
-Cells of a :class:`~monovo_cli.core.terrain_map.HeightGrid` (ground frame of init.yaml's
+Cells of a :class:`~monovo_cli.mapping.terrain_map.HeightGrid` (ground frame of init.yaml's
 plane: right, forward, m) are coloured by height (viridis, over the 1st to 99th percentile
 of the heights, so that a few wild cells do not wash the rest out), empty cells white;
 forward is up, equal scale on both axes, the camera path (optional) drawn over it.
@@ -15,7 +15,7 @@ import math
 import cv2
 import numpy as np
 
-from monovo_cli.core.terrain_map import HeightGrid
+from monovo_cli.mapping.terrain_map import HeightGrid
 from monovo_cli.viz.plots import AXIS, BACKGROUND, FONT, _label, _nice_step
 
 PATH = (40, 40, 40)

@@ -37,8 +37,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from monovo_cli.core.ground import default_threshold, rectangle_corners, select_points
-from monovo_cli.core.robust import inlier_bound
+from monovo_cli.core.estimator.ground import default_threshold, rectangle_corners, select_points
+from monovo_cli.core.estimator.robust import inlier_bound
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import InputError
 from monovo_cli.geometry.camera import PinholeCamera

@@ -2,13 +2,13 @@
 drive, and the poses re-scaled with them.
 
 Every keyframe's plane is the MAP of what was known when it was anchored
-(:mod:`monovo_cli.core.plane_belief`): the plane carried from the previous keyframe, the
+(:mod:`monovo_cli.core.plane.belief`): the plane carried from the previous keyframe, the
 images' normal and the mounting prior. The planes of the first keyframes are the least
 certain, and frame 0's is init.yaml's: when the camera was at a crest of its suspension,
 the first keyframes' scale is off by the crest's height over the distance. The backward pass
-of the Rauch-Tung-Striebel smoother (:func:`~monovo_cli.core.plane_belief.smoothed_corrections`,
+of the Rauch-Tung-Striebel smoother (:func:`~monovo_cli.core.plane.belief.smoothed_corrections`,
 with the gains and innovations each re-anchor left in its
-:class:`~monovo_cli.core.plane_belief.PlaneLink`) gives each keyframe's plane with the
+:class:`~monovo_cli.core.plane.belief.PlaneLink`) gives each keyframe's plane with the
 knowledge of the keyframes after it.
 
 The images fix a motion against a plane only as ``t / d`` (the plane-induced homography
@@ -36,7 +36,7 @@ flat bobbing drive the final error goes from 0.069 % (the prior at the keyframes
 tilts keep the backward pass's (they hardly move).
 
 ``motion.csv`` is written as frames are done and stays causal; trajectory.csv, .tum and the
-terrain products (:mod:`monovo_cli.core.terrain_map`) are written with these poses.
+terrain products (:mod:`monovo_cli.mapping.terrain_map`) are written with these poses.
 """
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ from typing import Protocol
 
 import numpy as np
 
-from monovo_cli.core.plane_belief import PlaneLink, from_chart, smoothed_corrections
+from monovo_cli.core.plane.belief import PlaneLink, from_chart, smoothed_corrections
 from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.geometry.plane import Plane
 

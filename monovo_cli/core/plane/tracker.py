@@ -1,5 +1,5 @@
 """The keyframe plane along a drive: its covariance, its test on the first frames, and the
-plane of every new keyframe (the tracker's side of :mod:`monovo_cli.core.plane_belief`).
+plane of every new keyframe (the tracker's side of :mod:`monovo_cli.core.plane.belief`).
 
 A keyframe's plane starts as init.yaml's with the mounting prior's covariance. While it is
 known only that loosely (tilt std above PLANE_SETTLED_DEG: frame 0, a re-initialisation),
@@ -17,11 +17,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from monovo_cli.core.estimate import Estimate, EstimatorOptions, estimate_motion
+from monovo_cli.core.estimator.estimate import Estimate, EstimatorOptions, estimate_motion
 from monovo_cli.core.keyframe import Keyframe, build_keyframe
-from monovo_cli.core.motion_covariance import PlaneConsistency
+from monovo_cli.core.plane.motion_covariance import PlaneConsistency
 from monovo_cli.core.options import TrackOptions
-from monovo_cli.core.plane_belief import (
+from monovo_cli.core.plane.belief import (
     CONFIRMED_DEG,
     CONSISTENT_CHI2,
     DISTANCE_CHANGE,
@@ -43,7 +43,7 @@ from monovo_cli.core.plane_belief import (
     to_chart,
     transported,
 )
-from monovo_cli.core.plane_fit import refine_plane_and_motion
+from monovo_cli.core.plane.fit import refine_plane_and_motion
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import orthonormalize
@@ -54,7 +54,7 @@ class PlaneTracker:
     """What the tracker believes about its keyframe's plane.
 
     ``mounting``: the mounting prior (``plane`` of init.yaml, ``sigma_distance`` m and
-    ``sigma_deg``; None: :func:`~monovo_cli.core.plane_belief.default_sigmas`);
+    ``sigma_deg``; None: :func:`~monovo_cli.core.plane.belief.default_sigmas`);
     ``covariance`` (3, 3): of the current keyframe plane's distance and tilts, in its chart;
     ``consistency`` calibrates it for the reported motion covariance (:attr:`reported_covariance`).
     """
@@ -122,7 +122,7 @@ class PlaneTracker:
         the MAP of the plane carried by the motion, the joint refinement's normal and the
         mounting prior (with DISTANCE_CHANGE and TILT_CHANGE_DEG of process noise on the
         carried plane); the brightness model is the refinement's; ``link`` what smoothing
-        ``key``'s plane in hindsight needs (:class:`~monovo_cli.core.plane_belief.PlaneLink`).
+        ``key``'s plane in hindsight needs (:class:`~monovo_cli.core.plane.belief.PlaneLink`).
         If the beliefs cannot be combined the carried plane comes back with covariance None
         and no link."""
         fit = refine_plane_and_motion(key.levels[0].points, image, cur_from_key, key.plane,

@@ -4,11 +4,11 @@ For observation points ``X_i`` (keyframe camera, on the ground plane) with keyfr
 intensities ``I_i`` and gradients ``g_i``, the current frame's pose ``cur_from_key = T``
 minimises  sum_i rho(I_cur(pi(T X_i)) - I_i)  (eqs. 10.1-10.3, 10.19 with U = sigma^2 I).
 
-The observation rows o_i (the paper's o, eq. 10.12; derived in :mod:`monovo_cli.core.jacobian`,
+The observation rows o_i (the paper's o, eq. 10.12; derived in :mod:`monovo_cli.core.estimator.jacobian`,
 which corrects eqs. 10.6 and 10.9) are evaluated once per keyframe at the keyframe's points
 (inverse compositional Gauss-Newton: the paper's constant g, with a constant observation
 matrix O), and each iteration solves the weighted normal equations (eq. 10.21 with robust
-weights W, :mod:`monovo_cli.core.robust`)
+weights W, :mod:`monovo_cli.core.estimator.robust`)
 
     xi = (O^T W O)^-1 O^T W FD,     FD_i = I_cur(pi(T X_i)) - I_i   (exact warp, eq. 10.7)
 
@@ -49,9 +49,9 @@ from functools import cached_property
 import cv2
 import numpy as np
 
-from monovo_cli.core.ground import LevelPoints
-from monovo_cli.core.jacobian import distortion_jacobian, observation_matrix, project_in_front
-from monovo_cli.core.robust import inlier_fraction, mad_scale, rho_sum, robust_weights
+from monovo_cli.core.estimator.ground import LevelPoints
+from monovo_cli.core.estimator.jacobian import distortion_jacobian, observation_matrix, project_in_front
+from monovo_cli.core.estimator.robust import inlier_fraction, mad_scale, rho_sum, robust_weights
 from monovo_cli.geometry.lie import se3_exp
 from monovo_cli.image.sampling import INTERPOLATION, pixel_grid, sample_at
 
@@ -83,7 +83,7 @@ class KeyLevel:
     how far an update moves the image. ``grid`` holds the points' keyframe pixels as a remap
     grid (see ``pixel_grid``); ``plane_m`` (3,) is ``n / d`` of the plane they lie on
     (``plane_m . X = 1``; a zero vector when they do not lie on one: points with depths of
-    their own, :mod:`monovo_cli.core.depth`) and ``box_rays`` (4, 3) the rays K^-1 (u, v, 1)
+    their own, :mod:`monovo_cli.mapping.depth`) and ``box_rays`` (4, 3) the rays K^-1 (u, v, 1)
     of the corners of the points' bounding box in the keyframe image.
     """
 
@@ -186,7 +186,7 @@ class Estimate:
     scale-normalised normal matrix. ``weights`` (N,) float32 are the finest level's final
     robust weights (0 at invalid points) and ``normal`` the (P, P) normal matrix ``J^T W J``
     behind ``covariance`` (P = 8 with the brightness model, else 6), for propagating other
-    errors through the estimate (:mod:`monovo_cli.core.motion_covariance`); ``scale`` (grey
+    errors through the estimate (:mod:`monovo_cli.core.plane.motion_covariance`); ``scale`` (grey
     levels) the robust scale (MAD) of the final differences those weights were made with
     (None where there were too few points).
     """

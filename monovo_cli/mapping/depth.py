@@ -18,11 +18,11 @@ it the prior keeps the plane's depth, and the returned std says so. Gain and bia
 a straight-line fit of the two images' intensities at the planar positions.
 
 This is the semi-dense direct methods' depth filter reduced to one update per keyframe; it
-feeds the terrain products (:mod:`monovo_cli.core.terrain_map`), not yet the tracking,
+feeds the terrain products (:mod:`monovo_cli.mapping.terrain_map`), not yet the tracking,
 whose warp is still the plane's homography.
 
 :func:`sweep_depths` is the terrain products' default: the ground is already on the
-keyframe's relief (:mod:`monovo_cli.core.relief`), and what it misses are small objects, a
+keyframe's relief (:mod:`monovo_cli.core.estimator.relief`), and what it misses are small objects, a
 rock 5-20 cm high that a 0.4 m grid does not see, too far from the relief for one
 Gauss-Newton step from it under a prior toward it. So it searches instead: each point's
 height along its ray over a range above and below where it is (a plane sweep: every third
@@ -40,8 +40,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monovo_cli.core.jacobian import project_in_front
-from monovo_cli.core.robust import mad_scale
+from monovo_cli.core.estimator.jacobian import project_in_front
+from monovo_cli.core.estimator.robust import mad_scale
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.image.gradients import sobel_gradient

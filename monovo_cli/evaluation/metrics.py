@@ -38,9 +38,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from monovo_cli.errors import InputError
+from monovo_cli.evaluation.sync import MAX_DT, default_max_dt, match_timestamps
 from monovo_cli.geometry.lie import se3_inv, so3_log
+from monovo_cli.geometry.trajectory import path_length
 
-MAX_DT = 0.02  # s, the default matching tolerance (less for frames closer than 0.04 s)
 ALIGNMENTS = ("none", "se3", "sim3")
 AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
 
@@ -110,66 +111,6 @@ class Evaluation:
             "final_rotation_error_deg": float(self.final_rotation_deg),
             "rotation_drift_deg_per_m": num(self.rotation_drift_deg_per_m),
         }
-
-
-def default_max_dt(ts_est: np.ndarray) -> float:
-    """The default matching tolerance (s): ``MAX_DT``, or half the median interval of the
-    estimate's timestamps ``ts_est`` (N,) s if that is less, so that no two frames can
-    match one true pose."""
-    ts = np.sort(np.asarray(ts_est, dtype=float))
-    if len(ts) < 2:
-        return MAX_DT
-    return float(min(MAX_DT, 0.5 * np.median(np.diff(ts))))
-
-
-def _span(ts: np.ndarray) -> str:
-    return f"{float(ts.min())!r}..{float(ts.max())!r} s"
-
-
-def match_timestamps(ts_est: np.ndarray, ts_gt: np.ndarray, *, max_dt: float | None = None,
-                     names: tuple[str, str] = ("estimate", "ground truth"),
-                     hint: str = "--max-dt sets the tolerance"
-                     ) -> tuple[np.ndarray, np.ndarray]:
-    """Index arrays ``(i_est, i_gt)`` pairing each estimated pose with the true pose nearest
-    in time, within ``max_dt`` s (None: :func:`default_max_dt`), in the estimate's time order.
-
-    Poses with no partner within ``max_dt`` are left out (a partial run); a true pose nearest
-    to two estimated ones goes to the closer. InputError if either holds a timestamp twice
-    or no pose matches (the message ends with ``hint``).
-    """
-    ts_est, ts_gt = np.asarray(ts_est, dtype=float), np.asarray(ts_gt, dtype=float)
-    for ts, name in ((ts_est, names[0]), (ts_gt, names[1])):
-        if len(ts) == 0:
-            raise InputError(f"{name}: no poses")
-    for ts, name in ((ts_est, names[0]), (ts_gt, names[1])):
-        s = np.sort(ts)
-        dup = np.nonzero(np.diff(s) <= 1e-9)[0]
-        if len(dup):
-            raise InputError(f"{name}: timestamp {float(s[dup[0]])!r} is given more than once")
-    tol = default_max_dt(ts_est) if max_dt is None else float(max_dt)
-    oe, og = np.argsort(ts_est, kind="stable"), np.argsort(ts_gt, kind="stable")
-    se, sg = ts_est[oe], ts_gt[og]
-    j = np.clip(np.searchsorted(sg, se), 1, max(len(sg) - 1, 1))
-    cand = np.stack([j - 1, np.minimum(j, len(sg) - 1)], 1)
-    near = cand[np.arange(len(se)), np.argmin(np.abs(sg[cand] - se[:, None]), axis=1)]
-    dt = np.abs(sg[near] - se)
-    taken = np.zeros(len(sg), bool)
-    keep = np.zeros(len(se), bool)
-    for i in np.argsort(dt, kind="stable"):  # the closest pairs first
-        if dt[i] > tol:
-            break
-        if not taken[near[i]]:
-            taken[near[i]] = keep[i] = True
-    if not keep.any():
-        raise InputError(f"none of the {len(se)} timestamps of {names[0]} ({_span(se)}) is "
-                         f"within {tol:g} s of one of {names[1]} ({_span(sg)}); is it the "
-                         f"ground truth of this sequence? ({hint})")
-    return oe[keep], og[near[keep]]
-
-
-def path_length(world_from_cam: np.ndarray) -> float:
-    """The length (m) of the camera path through poses (N, 4, 4): the sum of the steps."""
-    return float(np.linalg.norm(np.diff(world_from_cam[:, :3, 3], axis=0), axis=1).sum())
 
 
 def relative_motion_errors(est_world_from_cam: np.ndarray,
@@ -297,44 +238,3 @@ def evaluate(ts_est: np.ndarray, est_world_from_cam: np.ndarray, ts_gt: np.ndarr
         scale=scale,
         start_offset_m=start_offset,
     )
-
-
-def format_report(ev: Evaluation) -> str:
-    """The paper-style tables (Tables 10.1 / 10.2) and the trajectory measures as text."""
-    def g(x: float) -> str:
-        return f"{x:.5f}" if abs(x) >= 1e-5 or x == 0 else f"{x:.3e}"
-
-    lines = [f"{ev.poses} poses matched within {ev.max_dt:g} s (of {ev.estimate_poses} "
-             f"estimated, {ev.groundtruth_poses} true), {max(ev.poses - 1, 0)} relative "
-             f"motions, true path length {ev.distance_m:.3f} m"]
-    if ev.poses < max(ev.estimate_poses, ev.groundtruth_poses):
-        lines.append("  (a partial match: the measures cover the matched poses only)")
-    if ev.align == "sim3":
-        lines.append(f"  estimate scaled by {ev.scale:.6g} (sim3 alignment) for every measure "
-                     "but the unaligned ATE")
-    lines.append("")
-    for title, unit, axes, first in (("translation (Table 10.1)", "m", "TxTyTz", 0),
-                                     ("rotation (Table 10.2)", "deg", "wxwywz", 3)):
-        part = slice(first, first + 3)
-        lines += [f"Absolute relative-motion error, {title}",
-                  f"  {'axis':<10}{f'mean ({unit})':>14}{f'std ({unit})':>14}"]
-        for i in range(3):
-            a = f"|E_{axes[2 * i:2 * i + 2]}|"
-            lines.append(f"  {a:<10}{g(ev.relative_mean[first + i]):>14}"
-                         f"{g(ev.relative_std[first + i]):>14}")
-        lines += [f"  {'average':<10}{g(ev.relative_mean[part].mean()):>14}"
-                  f"{g(ev.relative_std[part].mean()):>14}", ""]
-    lines += ["Trajectory",
-              f"  ATE RMSE, no alignment      {ev.ate_rmse:.6f} m (max {ev.ate_max:.6f} m)"]
-    if ev.ate_rmse_aligned is not None:
-        what = "SE(3) aligned" if ev.align == "se3" else "Sim(3) aligned"
-        lines.append(f"  ATE RMSE, {what:<18}{ev.ate_rmse_aligned:.6f} m")
-    elif ev.start_offset_m > 1e-6:
-        lines.append(f"  (the trajectories start {ev.start_offset_m:.3g} m apart: another "
-                     "world frame? --align compares their shapes)")
-    pct = f"{ev.final_drift_pct:.3f} %" if math.isfinite(ev.final_drift_pct) else "n/a"
-    rate = (f"{ev.rotation_drift_deg_per_m:.4f} deg/m"
-            if math.isfinite(ev.rotation_drift_deg_per_m) else "n/a")
-    lines += [f"  final drift                 {ev.final_drift_m:.6f} m = {pct} of the path",
-              f"  final rotation error        {ev.final_rotation_deg:.4f} deg = {rate}"]
-    return "\n".join(lines)

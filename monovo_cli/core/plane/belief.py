@@ -25,7 +25,7 @@ of the informations, iterated on the sphere) of
     the images' normal of each new patch, biased on curved ground, walks it away unchecked by
     the mounting prior (KITTI's on-ramp: 10 deg of roll over 50 m, 17 % of the distance);
 (b) the plane measured from the images at that keyframe: the normal from the joint
-    refinement of motion and normal (:mod:`monovo_cli.core.plane_fit`), with the information
+    refinement of motion and normal (:mod:`monovo_cli.core.plane.fit`), with the information
     of its normal equations; no information on the distance (with d and the translation
     scaled together the images do not change);
 (c) the mounting prior (:func:`mounting_prior`): the rover stands on the ground, so in every
@@ -44,29 +44,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from monovo_cli.geometry.lie import skew
-from monovo_cli.geometry.plane import Plane
+from monovo_cli.geometry.plane import Plane, tangent_basis
 
 SIGMA_DISTANCE_FRACTION = 1.0 / 30.0  # default ground.sigma_distance: this x the distance
 SIGMA_DEG = 3.0  # default ground.sigma_deg
 DISTANCE_CHANGE = 0.02  # process noise of the carried distance per keyframe: this x the distance
 TILT_CHANGE_DEG = 0.5  # process noise of each carried tilt angle per keyframe (deg)
-
-
-def tangent_basis(n: np.ndarray) -> np.ndarray:
-    """(3, 2): two orthonormal vectors orthogonal to the unit vector ``n`` (a fixed choice),
-    ``e1 x e2 = n``."""
-    a = (1.0, 0.0, 0.0) if abs(n[0]) < 0.9 else (0.0, 1.0, 0.0)
-    e1 = _cross(n, a)
-    e1 /= np.linalg.norm(e1)
-    return np.column_stack([e1, _cross(n, e1)])
-
-
-def _cross(a, b) -> np.ndarray:
-    """``a x b`` of two 3-vectors, the arithmetic of ``np.cross`` (called ~10 times a frame, where
-    ``np.cross``'s own overhead was 6 % of the tracker's time at 256x256)."""
-    a0, a1, a2 = (float(v) for v in a)
-    b0, b1, b2 = (float(v) for v in b)
-    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 def to_chart(ref: Plane, plane: Plane) -> np.ndarray:
@@ -217,7 +200,7 @@ class PlaneLink:
     plane's covariance, J the plane block of :func:`propagation_jacobian`, P_pred the carried
     plane's covariance with the process noise).
 
-    For re-solving the distances in hindsight (:func:`monovo_cli.core.hindsight.smoothed_distances`):
+    For re-solving the distances in hindsight (:func:`monovo_cli.mapping.hindsight.smoothed_distances`):
     ``carried_distance`` (m) the carried plane's distance, ``carried_variance`` (m^2) the
     variance that carrying added to it (the motion's error, the tilt's, the process noise:
     the carried plane's distance variance less the previous keyframe's own, scaled),

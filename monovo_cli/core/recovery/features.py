@@ -53,10 +53,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from monovo_cli.core.plane_belief import tangent_basis
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import make_pose
-from monovo_cli.geometry.plane import Plane
+from monovo_cli.geometry.plane import Plane, tangent_basis
 
 MASK_GRID_PX = 8  # the plane-visibility mask is evaluated on this grid and interpolated
 CUR_DEPRESSION_DEG = -5.0  # current-frame features: up to 5 deg above the keyframe's horizon

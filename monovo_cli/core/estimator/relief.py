@@ -22,7 +22,7 @@ of keyframes no longer inherits the plane's model error, and the relief's shape 
 to the next keyframe (:func:`carried`), whose frames are tracked against it.
 
 Derivatives (left perturbation ``T <- exp(delta^) T`` of ``cur_from_key``, ``Xc = T X``):
-``dr/d delta`` is the observation row at ``Xc`` (:func:`~monovo_cli.core.jacobian.observation_rows`,
+``dr/d delta`` is the observation row at ``Xc`` (:func:`~monovo_cli.core.estimator.jacobian.observation_rows`,
 with the current image's gradient), ``dr/d h = (a . R r) * (-1 / (n . r))`` with ``a`` the
 row's first three entries (d intensity / d Xc), ``dr/d gain = -I_key``, ``dr/d bias = -1``.
 """
@@ -33,9 +33,9 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from monovo_cli.core.estimate import Estimate, EstimatorOptions, KeyLevel, estimate_motion
-from monovo_cli.core.jacobian import distortion_jacobian, observation_rows, project_in_front
-from monovo_cli.core.robust import mad_scale, robust_weights
+from monovo_cli.core.estimator.estimate import Estimate, EstimatorOptions, KeyLevel, estimate_motion
+from monovo_cli.core.estimator.jacobian import distortion_jacobian, observation_rows, project_in_front
+from monovo_cli.core.estimator.robust import mad_scale, robust_weights
 from monovo_cli.geometry.lie import se3_exp
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.image.gradients import sobel_gradient

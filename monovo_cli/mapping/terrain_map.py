@@ -5,24 +5,24 @@ into the world frame (camera 0's) with the keyframe's pose; a keyframe rebuilt i
 frame-0 plane corrected) replaces its points.
 
 **Smoothed planes.** A keyframe's plane is the filter's belief when it was anchored
-(:mod:`monovo_cli.core.plane_belief`): frame 0's is init.yaml's, whose distance the
+(:mod:`monovo_cli.core.plane.belief`): frame 0's is init.yaml's, whose distance the
 mounting prior only corrects over the following keyframes (a camera that starts at a crest
 of its suspension). The map is written at the end of the run, so each keyframe's points are
 put on its plane as the whole chain knows it: the Rauch-Tung-Striebel backward pass over the
 keyframe planes, with the filter's own covariances, process noise and innovations
-(:class:`~monovo_cli.core.plane_belief.PlaneLink`); a point keeps its height off the plane
+(:class:`~monovo_cli.core.plane.belief.PlaneLink`); a point keeps its height off the plane
 (its relief) and moves along its ray, and goes into the world frame with its keyframe's
 pose re-scaled with the smoothed planes, as trajectory.csv has it
-(:mod:`monovo_cli.core.hindsight`); motion.csv stays the filter's, as streamed. (On the
+(:mod:`monovo_cli.mapping.hindsight`); motion.csv stays the filter's, as streamed. (On the
 rolling terrain drive the first keyframes' points sit 4.4 and 3.8 cm low without it: a
 diagnostic run.)
 
 **What the relief misses.** When a keyframe is left, its points are searched along their
 rays against its successor's image (or the last frame's) at the successor's pose
-(``refine="sweep"``, the default: :func:`~monovo_cli.core.depth.sweep_depths`): a point
+(``refine="sweep"``, the default: :func:`~monovo_cli.mapping.depth.sweep_depths`): a point
 whose patch clearly matches at another height (a rock the 0.4 m relief does not see) moves
 there; the rest stay on the relief. ``refine="newton"`` is the Gauss-Newton per-point
-refinement under a prior toward the relief (:func:`~monovo_cli.core.depth.refine_depths`;
+refinement under a prior toward the relief (:func:`~monovo_cli.mapping.depth.refine_depths`;
 noisier over whole drives, docs/algorithm.md section "The terrain products"), None keeps
 every point where tracking put it. Heights are measured
 in the **ground frame** of the first keyframe's smoothed plane (frame 0's ground as tracking
@@ -42,10 +42,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monovo_cli.core.depth import refine_depths, sweep_depths
-from monovo_cli.core.hindsight import smoothed_key_poses, smoothed_planes
+from monovo_cli.mapping.depth import refine_depths, sweep_depths
+from monovo_cli.mapping.hindsight import smoothed_key_poses, smoothed_planes
 from monovo_cli.core.keyframe import Keyframe
-from monovo_cli.core.plane_belief import PlaneLink
+from monovo_cli.core.plane.belief import PlaneLink
 from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.geometry.plane import Plane
 
@@ -154,7 +154,7 @@ class TerrainMap:
 
     def _smoothed(self) -> list[tuple[_Chunk, Plane, np.ndarray]]:
         """Each keyframe's chunk, oldest first, with its plane (its camera) and pose smoothed
-        in hindsight when ``smooth`` (:mod:`monovo_cli.core.hindsight`, module docstring)."""
+        in hindsight when ``smooth`` (:mod:`monovo_cli.mapping.hindsight`, module docstring)."""
         chunks = [self._chunks[k] for k in sorted(self._chunks)]
         if not self.smooth:
             return [(c, c.plane, c.world_from_key) for c in chunks]

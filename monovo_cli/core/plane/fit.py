@@ -6,7 +6,7 @@ we therefore refine, jointly, the motion ``cur_from_key`` and the keyframe plane
 from the two images (the keyframe's observation points sampled in the current frame, a
 forward Gauss-Newton whose point positions X_i(n) = d r_i / (n . r_i) move with the plane).
 The result is a measurement of the normal with the information of its normal equations
-(:class:`PlaneFit`), which :mod:`monovo_cli.core.plane_belief` combines with the plane
+(:class:`PlaneFit`), which :mod:`monovo_cli.core.plane.belief` combines with the plane
 carried through the motions and the mounting prior.
 
 The distance d is not refined here: with d and the translation scaled together the images
@@ -20,13 +20,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monovo_cli.core.estimate import EstimatorOptions
-from monovo_cli.core.ground import LevelPoints
-from monovo_cli.core.jacobian import distortion_jacobian, observation_rows, project_in_front
-from monovo_cli.core.plane_belief import PlaneBelief, tangent_basis
-from monovo_cli.core.robust import robust_weights
+from monovo_cli.core.estimator.estimate import EstimatorOptions
+from monovo_cli.core.estimator.ground import LevelPoints
+from monovo_cli.core.estimator.jacobian import distortion_jacobian, observation_rows, project_in_front
+from monovo_cli.core.plane.belief import PlaneBelief
+from monovo_cli.core.estimator.robust import robust_weights
 from monovo_cli.geometry.lie import se3_exp
-from monovo_cli.geometry.plane import Plane
+from monovo_cli.geometry.plane import Plane, tangent_basis
 from monovo_cli.image.gradients import sobel_gradient
 from monovo_cli.image.sampling import sample_bilinear
 

@@ -4,7 +4,7 @@ keyframe plane's error.
 Each frame is estimated against its keyframe, whose points ``X_i = d ray_i / (n . ray_i)``
 lie on the keyframe's plane ``(n, d)``. That plane is known only to within
 ``PlaneTracker.covariance`` P (3, 3) of its chart coordinates ``x = (d, theta_1, theta_2)``
-(:mod:`monovo_cli.core.plane_belief`), and an error ``dx`` in it moves every point along its
+(:mod:`monovo_cli.core.plane.belief`), and an error ``dx`` in it moves every point along its
 ray, ``X_i -> (1 + s_i) X_i`` with
 
     s_i = dd / d - X_i . E dtheta / d       (E: the chart's tangent basis at n).
@@ -55,7 +55,7 @@ calibrates it for reporting from how the keyframe planes actually agree at each 
   another seed's rolling and sloped ones (benchmarks.terrain, docs/benchmarks.md).
 
 Before the first re-anchor the tilt's model error is not measured yet: a plane the images did
-not confirm as exact (:func:`~monovo_cli.core.plane_belief.exact_covariance`) gets the
+not confirm as exact (:func:`~monovo_cli.core.plane.belief.exact_covariance`) gets the
 filter's own tilt process noise per keyframe, TILT_CHANGE_DEG on each angle. Without it the
 first frames of the rolling drive, on frame 0's plane corrected to the swell under it to
 within 0.02 deg, had pitch errors twelve times their reported std.
@@ -68,16 +68,15 @@ from collections import deque
 
 import numpy as np
 
-from monovo_cli.core.estimate import Estimate, KeyLevel
-from monovo_cli.core.plane_belief import (
+from monovo_cli.core.estimator.estimate import Estimate, KeyLevel
+from monovo_cli.core.plane.belief import (
     EXACT_STD,
     TILT_CHANGE_DEG,
     PlaneBelief,
-    tangent_basis,
     to_chart,
 )
 from monovo_cli.geometry.lie import adjoint, output_covariance
-from monovo_cli.geometry.plane import Plane
+from monovo_cli.geometry.plane import Plane, tangent_basis
 
 TILT_PERSISTENCE = 2.0 / 3.0  # rho: correlation of consecutive keyframe planes' tilt errors
 CONSISTENCY_WINDOW = 100  # re-anchors remembered by PlaneConsistency
@@ -177,7 +176,7 @@ class PlaneConsistency:
     def reanchored(self, carried: PlaneBelief, new: PlaneBelief, prior: PlaneBelief,
                    distance_change: float) -> None:
         """One re-anchor: the old keyframe's plane ``carried`` to the new keyframe
-        (:func:`~monovo_cli.core.plane_belief.carried_plane`, before process noise), whose
+        (:func:`~monovo_cli.core.plane.belief.carried_plane`, before process noise), whose
         plane is ``new`` (the MAP); ``prior`` the mounting prior, ``distance_change`` (m) the
         distance's process noise."""
         try:

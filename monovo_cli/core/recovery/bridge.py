@@ -5,7 +5,7 @@ velocity). A rover that stops driving to turn in place breaks that prediction at
 moment: on the MER-spacing drive (docs/benchmarks.md) a frame lost at a 15 deg turn carried a
 0.7 m step instead, and the re-initialisations that followed anchored their fresh keyframes
 66-70 cm and 12-19 deg off the truth, most of that run's final error. The feature hypothesis
-(:mod:`monovo_cli.core.features`) does not depend on the motion's size, so it bridges them:
+(:mod:`monovo_cli.core.recovery.features`) does not depend on the motion's size, so it bridges them:
 
 * a :class:`Reference` is the latest frame whose pose the tracker trusts: the keyframe
   while tracking, a bridged lost frame while recovering. The current frame's hypothesis is
@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monovo_cli.core.features import CHEAP, FeatureMotion, FeatureOptions, feature_motion
+from monovo_cli.core.recovery.features import CHEAP, FeatureMotion, FeatureOptions, feature_motion
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import orthonormalize, se3_inv
 from monovo_cli.geometry.plane import Plane
@@ -87,7 +87,7 @@ def bridge(ref: Reference, image: np.ndarray, camera: PinholeCamera, key_plane: 
     """The feature hypothesis of ``image`` (H, W) against ``ref``, chained to the keyframe.
 
     ``key_plane`` is the ground in the keyframe camera; ``mask``/``region`` as for
-    :func:`~monovo_cli.core.features.feature_motion`. None when the features give no
+    :func:`~monovo_cli.core.recovery.features.feature_motion`. None when the features give no
     hypothesis.
     """
     ref_plane = key_plane.in_frame(ref.from_key)
