@@ -45,7 +45,7 @@ from benchmarks.crb import QUANTISATION_VAR, bound_levels, bound_std, informatio
 from benchmarks.real_synth import NOISE_VAR, PAIR_SEED, RENDERS, crb_stds, rendered, rock_png
 from monovo_cli.core.estimator.estimate import residuals
 from monovo_cli.core.keyframe import build_keyframe
-from monovo_cli.core.odometry import track
+from monovo_cli.core.odometry import estimate_frames
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.geometry.lie import se3_exp, se3_inv
 from monovo_cli.image.sampling import sample_at
@@ -109,7 +109,7 @@ def cells(v: np.ndarray) -> str:
 def track_frames(scene, frames: list[np.ndarray]) -> np.ndarray:
     """Errors (6,) of monovo (default options) on a pair held in memory."""
     cfg = load_init(scene.directory / "init.yaml")
-    res = list(track([(k, float(k), f) for k, f in enumerate(frames)], cfg.camera, cfg.plane,
+    res = list(estimate_frames([(k, float(k), f) for k, f in enumerate(frames)], cfg.camera, cfg.plane,
                      cfg.region, TrackOptions()))
     return motion_errors(res[1].prev_from_cur, scene.prev_from_cur)
 

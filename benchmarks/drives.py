@@ -31,7 +31,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from benchmarks.common import final_drift, machine, motion_errors, std_columns  # noqa: E402
-from monovo_cli.core.odometry import track  # noqa: E402
+from monovo_cli.core.odometry import estimate_frames  # noqa: E402
 from monovo_cli.core.options import TrackOptions  # noqa: E402
 from monovo_cli.io.config import load_init  # noqa: E402
 from monovo_cli.io.formats import read_motion_csv, read_tum  # noqa: E402
@@ -105,7 +105,7 @@ def std_honesty(root: Path, n_pairs: int, seed: int) -> np.ndarray:
         cfg = load_init(pair / "init.yaml")
         fr = FrameSequence(pair / "frames")
         plane = cfg.plane
-        res = list(track(((f.index, f.timestamp, f.image) for f in fr), cfg.camera, plane,
+        res = list(estimate_frames(((f.index, f.timestamp, f.image) for f in fr), cfg.camera, plane,
                          cfg.region, TrackOptions()))
         _, gt, _ = read_motion_csv(pair / "groundtruth_motion.csv")
         e = motion_errors(res[1].prev_from_cur, gt[0])

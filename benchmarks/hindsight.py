@@ -30,13 +30,14 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import final_drift, load, machine, one_core
-from monovo_cli.mapping.hindsight import KeyRecord, segment_lifts, smoothed_distances, smoothed_poses
-from monovo_cli.core.odometry import track
+from monovo_cli.core.odometry import estimate_frames
 from monovo_cli.core.options import TrackOptions
+from monovo_cli.core.run import KeyRecord
 from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_tum
 from monovo_cli.io.frames import FrameSequence
+from monovo_cli.mapping.hindsight import segment_lifts, smoothed_distances, smoothed_poses
 from monovo_cli.synth.write import synthesize
 
 CASES = ("flat", "rolling", "slope", "rocks", "plane")
@@ -56,9 +57,9 @@ def run_case(seq: Path, kind: str) -> dict:
     keys: dict[int, KeyRecord] = {}
 
     def on_keyframe(key) -> None:
-        keys[key.index] = KeyRecord(np.array(key.world_from_key), key.plane, key.link)
+        keys[key.index] = KeyRecord.of(key)
 
-    res = list(track(((f.index, f.timestamp, f.image) for f in FrameSequence(seq / "frames")),
+    res = list(estimate_frames(((f.index, f.timestamp, f.image) for f in FrameSequence(seq / "frames")),
                      cfg.camera, cfg.plane, cfg.region, TrackOptions(), on_keyframe=on_keyframe,
                      sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg))
     index = [r.index for r in res]

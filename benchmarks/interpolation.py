@@ -26,7 +26,7 @@ import numpy as np
 from benchmarks.common import AXES, axis_table, machine, motion_errors, one_core
 from monovo_cli.core.estimator.estimate import EstimatorOptions, residuals
 from monovo_cli.core.keyframe import build_keyframe
-from monovo_cli.core.odometry import track
+from monovo_cli.core.odometry import estimate_frames
 from monovo_cli.core.options import ALL_POINTS, TrackOptions
 from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.image.sampling import INTERPOLATION
@@ -71,7 +71,7 @@ def main() -> None:
                     rms[(name, method)].append(r[valid].astype(np.float64))
             for method in INTERPOLATION:
                 opts = TrackOptions(estimator=EstimatorOptions(interpolation=method))
-                res = list(track([(i, float(i), f) for i, f in enumerate(frames)], cfg.camera,
+                res = list(estimate_frames([(i, float(i), f) for i, f in enumerate(frames)], cfg.camera,
                                  plane, cfg.region, opts))
                 errs[method].append(motion_errors(res[1].prev_from_cur, gt[0]))
     print(f"{args.pairs} noise-free pairs, 688x544, seed {args.seed}: frame-1 intensity at the "

@@ -36,7 +36,7 @@ from benchmarks.common import (
     options_note,
     track_options,
 )
-from monovo_cli.core.odometry import track
+from monovo_cli.core.odometry import estimate_frames
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_motion_csv
@@ -71,7 +71,7 @@ def track_pairs(root: Path, options: TrackOptions):
         imgs = [(f.index, f.timestamp, f.image) for f in frames]
         plane = cfg.plane
         t0, c0 = time.perf_counter(), time.process_time()
-        res = list(track(imgs, cfg.camera, plane, cfg.region, options))
+        res = list(estimate_frames(imgs, cfg.camera, plane, cfg.region, options))
         secs.append(time.perf_counter() - t0)
         cpu.append(time.process_time() - c0)
         _, gt, _ = read_motion_csv(pair / "groundtruth_motion.csv")

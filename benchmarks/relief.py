@@ -34,9 +34,9 @@ import monovo_cli.core.odometry as odometry
 import monovo_cli.core.plane.tracker as plane_tracker
 from benchmarks.common import machine, one_core
 from monovo_cli.core.estimator.estimate import EstimatorOptions, KeyLevel, estimate_motion
+from monovo_cli.core.estimator.relief import plane_axes, refine_pose_and_relief
 from monovo_cli.core.keyframe import build_keyframe
 from monovo_cli.core.options import TrackOptions
-from monovo_cli.core.estimator.relief import plane_axes, refine_pose_and_relief
 from monovo_cli.geometry.lie import se3_inv, so3_exp, so3_log
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.image.pyramid import build_pyramid
@@ -112,7 +112,7 @@ def tracked(seq: Path, frames: int, options: TrackOptions, points: str | None) -
         odometry.build_keyframe = plane_tracker.build_keyframe = oracle
     try:
         t0 = time.perf_counter()
-        res = list(odometry.track(((f.index, f.timestamp, f.image) for f in images), cfg.camera,
+        res = list(odometry.estimate_frames(((f.index, f.timestamp, f.image) for f in images), cfg.camera,
                                   cfg.plane, cfg.region, options))
         seconds = time.perf_counter() - t0
     finally:

@@ -44,7 +44,7 @@ from pathlib import Path
 
 from benchmarks.common import Stopwatch, final_drift, load, machine, one_core
 from benchmarks.peers import EccPeer, peer_on_drive
-from monovo_cli.core.odometry import track
+from monovo_cli.core.odometry import estimate_frames
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_tum
@@ -93,7 +93,7 @@ def estimator_only(seq: Path) -> tuple[float, float]:
     imgs = [(f.index, f.timestamp, f.image) for f in frames]
     plane = cfg.plane
     with Stopwatch() as watch:
-        n = sum(1 for _ in track(imgs, cfg.camera, plane, cfg.region, TrackOptions()))
+        n = sum(1 for _ in estimate_frames(imgs, cfg.camera, plane, cfg.region, TrackOptions()))
     return n / watch.wall, n / watch.cpu
 
 

@@ -142,7 +142,7 @@ def summary_track(monkeypatch):
 
     def fake(*a, **kw):
         return SimpleNamespace(frames=2, seconds=1.0, fps=2.0, mean_msd=0.5, reanchored=0,
-                               reinit=0, lost=0, distance_m=0.1, mostly_lost=False)
+                               reinit=0, lost=0, path_length=0.1, mostly_lost=False)
 
     monkeypatch.setattr(track, "track_sequence", fake)
 

@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from monovo_cli.core.odometry import track
+from monovo_cli.core.odometry import estimate_frames
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.camera import PinholeCamera
@@ -45,7 +45,7 @@ def distorted_drive():
 
 
 def _final_error(camera, plane, frames, truth):
-    res = list(track(iter(frames), camera, plane, (0, 0, camera.width, camera.height),
+    res = list(estimate_frames(iter(frames), camera, plane, (0, 0, camera.width, camera.height),
                      TrackOptions(max_points=6000)))
     est = res[-1].world_from_cam
     return (np.linalg.norm(est[:3, 3] - truth[-1][:3, 3]),

@@ -11,7 +11,7 @@ from click.testing import CliRunner
 from monovo_cli.cli import main
 from monovo_cli.core.estimator.estimate import KeyLevel, estimate_motion
 from monovo_cli.core.estimator.ground import rectangle_corners, select_points
-from monovo_cli.core.odometry import Odometry, OdometryState, track
+from monovo_cli.core.odometry import Odometry, OdometryState, estimate_frames
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.lie import se3_inv
@@ -34,7 +34,7 @@ def _track(seq, images=None, options=None, priors=None):
     fr = FrameSequence(seq / "frames")
     imgs = images if images is not None else [f.image for f in fr]
     plane = cfg.plane
-    return list(track(((k, float(k), im) for k, im in enumerate(imgs)), cfg.camera, plane,
+    return list(estimate_frames(((k, float(k), im) for k, im in enumerate(imgs)), cfg.camera, plane,
                       cfg.region, options or TrackOptions(), priors=priors))
 
 

@@ -1,23 +1,23 @@
 """The poses re-scaled in hindsight (monovo_cli.mapping.hindsight), against hand-made chains."""
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from plane_helpers import N0
 
+from monovo_cli.core.options import TrackOptions
+from monovo_cli.core.plane.belief import PlaneLink
+from monovo_cli.core.run import KeyRecord, RunRecorder
+from monovo_cli.geometry.lie import make_pose, se3_inv, so3_exp
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.io.formats import read_tum
 from monovo_cli.mapping.hindsight import (
-    Hindsight,
-    KeyRecord,
     segment_lifts,
     smoothed_distances,
     smoothed_poses,
 )
-from monovo_cli.core.options import TrackOptions
-from monovo_cli.core.plane.belief import PlaneLink
-from monovo_cli.geometry.lie import make_pose, se3_inv, so3_exp
-from monovo_cli.geometry.plane import Plane
-from monovo_cli.io.formats import read_tum
 from monovo_cli.pipeline.track import track_sequence
 from monovo_cli.synth.write import synthesize
 
@@ -57,11 +57,11 @@ def test_a_keyframe_the_chain_corrects_puts_its_segment_and_all_after_it_back():
     planes = [Plane(N0, 1.54), Plane(N0, 1.5), Plane(N0, 1.5)]
     links = [None, PlaneLink(np.eye(3), np.array([-0.04, 0.0, 0.0])),
              PlaneLink(np.eye(3), np.zeros(3))]
-    records = [(k, KeyRecord(est[k], p, link)) for k, p, link in zip(keys, planes, links)]
+    records = [(k, KeyRecord(k, est[k], p, link)) for k, p, link in zip(keys, planes, links)]
     out = smoothed_poses(range(14), est, records)
     assert out == pytest.approx(truth, abs=1e-12)
     # no link (a chain that begins at each keyframe, or --no-smooth): nothing moves
-    plain = [(k, KeyRecord(est[k], p, None)) for k, p in zip(keys, planes)]
+    plain = [(k, KeyRecord(k, est[k], p, None)) for k, p in zip(keys, planes)]
     assert smoothed_poses(range(14), est, plain) == pytest.approx(est, abs=1e-12)
 
 
@@ -70,14 +70,22 @@ def test_hindsight_keeps_the_last_keyframe_of_an_index_and_frames_before_the_fir
     keyframe (none in a run, where frame 0 is one) keep their poses."""
     truth = drive(10)
     est = measured(truth, [0, 4], {0: 1.0, 4: 1.02})
-    h = Hindsight()
-    h.add(4, KeyRecord(est[4], Plane(N0, 1.5), None))
-    h.add(6, KeyRecord(est[6], Plane(N0, 1.5), PlaneLink(np.eye(3), np.array([0.9, 0, 0]))))
-    h.add(6, KeyRecord(est[6], Plane(N0, 1.5), None))  # the rebuilt one: no link
-    out = h.poses(range(10), est)
+    rec = RunRecorder()
+
+    def add(k, link):
+        rec.add_keyframe(SimpleNamespace(index=k, world_from_key=est[k], plane=Plane(N0, 1.5),
+                                         link=link))
+
+    def poses():
+        return smoothed_poses(range(10), est, [(k.index, k) for k in rec.keyframes])
+
+    add(4, None)
+    add(6, PlaneLink(np.eye(3), np.array([0.9, 0, 0])))
+    add(6, None)  # the rebuilt one: no link
+    out = poses()
     assert out == pytest.approx(est, abs=1e-12)
-    h.add(9, KeyRecord(est[9], Plane(N0, 1.5), PlaneLink(np.eye(3), np.array([-0.03, 0, 0]))))
-    out = h.poses(range(10), est)
+    add(9, PlaneLink(np.eye(3), np.array([-0.03, 0, 0])))
+    out = poses()
     assert out[:7] == pytest.approx(est[:7], abs=1e-12)  # keyframe 4 has no successor link
     step = se3_inv(est[6]) @ est[7]
     assert np.linalg.norm(out[7][:3, 3] - out[6][:3, 3]) == pytest.approx(
@@ -99,12 +107,12 @@ def bobbing_chain(held: bool = False) -> tuple[np.ndarray, np.ndarray, list]:
     est = truth.copy()
     est[:, :3, 3] *= s  # (positions scale with the translations: same rotations)
     start = 1e-14 if held else 0.05 ** 2
-    keys = [(0, KeyRecord(est[0], Plane(N0, 1.5), None))]
+    keys = [(0, KeyRecord(0, est[0], Plane(N0, 1.5), None))]
     for k in (10, 20):
         link = PlaneLink(np.eye(3), np.zeros(3), carried_distance=1.5, carried_variance=0.03 ** 2,
                          previous_variance=start if k == 10 else 0.04 ** 2, mounting=(1.5, 0.05))
         key_plane = Plane(se3_inv(est[k])[:3, :3] @ est[0][:3, :3] @ N0, 1.5)
-        keys.append((k, KeyRecord(est[k], key_plane, link)))
+        keys.append((k, KeyRecord(k, est[k], key_plane, link)))
     return truth, est, keys
 
 
@@ -138,12 +146,15 @@ def test_a_keyframe_plane_confirmed_as_exact_is_held_in_hindsight():
     assert 1.5 < d[1] < d[2] < 1.53
 
 
-def test_the_summary_s_path_is_the_written_trajectory_s(tmp_path):
+def test_the_summary_s_path_is_the_written_trajectory_s(tmp_path, capsys):
     """`monovo track` prints the path length of trajectory.csv (re-scaled in hindsight), not
-    of motion.csv's motions composed."""
+    of motion.csv's motions composed, with -o DIR and with -o - alike."""
     synthesize(tmp_path / "seq", preset="drive", terrain="flat", frames=30, size=(192, 192),
                noise_var=10.0, seed=4)
     s = track_sequence(tmp_path / "seq", None, tmp_path / "out", TrackOptions())
     _, traj = read_tum(tmp_path / "out" / "trajectory.tum")
     path = float(np.sum(np.linalg.norm(np.diff(traj[:, :3, 3], axis=0), axis=1)))
-    assert s.distance_m == pytest.approx(path, rel=1e-6)
+    assert s.path_length == pytest.approx(path, rel=1e-6)
+    streamed = track_sequence(tmp_path / "seq", None, None, TrackOptions())
+    assert capsys.readouterr().out.count("\n") == 30  # the header and 29 rows
+    assert streamed.path_length == s.path_length

@@ -11,14 +11,7 @@ from plane_helpers import N0, tilted
 from benchmarks.common import motion_errors
 from monovo_cli.core.estimator.estimate import estimate_motion
 from monovo_cli.core.keyframe import build_keyframe
-from monovo_cli.core.plane.motion_covariance import (
-    TILT_PERSISTENCE,
-    MotionCovariance,
-    PlaneConsistency,
-    plane_sensitivity,
-    point_sample,
-)
-from monovo_cli.core.odometry import track
+from monovo_cli.core.odometry import estimate_frames
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane.belief import (
     TILT_CHANGE_DEG,
@@ -27,6 +20,13 @@ from monovo_cli.core.plane.belief import (
     exact_covariance,
     mounting_prior,
     to_chart,
+)
+from monovo_cli.core.plane.motion_covariance import (
+    TILT_PERSISTENCE,
+    MotionCovariance,
+    PlaneConsistency,
+    plane_sensitivity,
+    point_sample,
 )
 from monovo_cli.geometry.lie import adjoint, make_pose, se3_inv, se3_log, so3_exp
 from monovo_cli.geometry.plane import Plane
@@ -197,7 +197,7 @@ def test_the_first_frames_on_rolling_ground_are_covered_before_any_re_anchor(tmp
     synthesize(seq, preset="drive", terrain="rolling", frames=30, size=(256, 256), noise_var=10.0,
                seed=seed)
     cfg = load_init(seq / "init.yaml")
-    res = list(track(((f.index, f.timestamp, f.image) for f in FrameSequence(seq / "frames")),
+    res = list(estimate_frames(((f.index, f.timestamp, f.image) for f in FrameSequence(seq / "frames")),
                      cfg.camera, cfg.plane, cfg.region, TrackOptions(),
                      sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg))
     _, gt, _ = read_motion_csv(seq / "groundtruth_motion.csv")

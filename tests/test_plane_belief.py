@@ -7,8 +7,7 @@ import pytest
 import yaml
 from plane_helpers import N0, tilted
 
-from monovo_cli.mapping.hindsight import Hindsight
-from monovo_cli.core.odometry import Odometry, track
+from monovo_cli.core.odometry import Odometry, estimate_frames
 from monovo_cli.core.plane.belief import (
     PlaneBelief,
     carried_plane,
@@ -23,11 +22,13 @@ from monovo_cli.core.plane.belief import (
     to_chart,
     transported,
 )
-from monovo_cli.mapping.terrain_map import TerrainMap
+from monovo_cli.core.run import RunRecorder
 from monovo_cli.errors import ConfigError
 from monovo_cli.geometry.lie import make_pose, se3_inv, so3_exp
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.config import load_init
+from monovo_cli.mapping.hindsight import smoothed_keyframes, smoothed_poses
+from monovo_cli.mapping.terrain_map import TerrainMap
 from monovo_cli.synth.motion import camera_mount
 from monovo_cli.synth.render import (
     GroundRenderer,
@@ -214,24 +215,25 @@ def test_bobbing_drive_from_a_crest_ends_without_the_crests_scale():
               for k, g in enumerate(poses))
     n0, d0 = ground_in_camera(mount)
     assert d0 / ground_in_camera(poses[0])[1] == pytest.approx(0.974, abs=1e-3)  # the crest
-    maps = {smooth: TerrainMap(Plane(n0, d0), smooth=smooth) for smooth in (True, False)}
+    tmap = TerrainMap(Plane(n0, d0))
     first = {}  # keyframe 0's points (all kept: fewer than POINTS_PER_KEYFRAME at 128x128)
-    hindsight = Hindsight()
+    recorder = RunRecorder()
 
     def on_keyframe(key):
-        hindsight.add(key.index, key)
-        for m in maps.values():
-            m.add(key)
+        recorder.add_keyframe(key)
+        tmap.add(key)
         if key.index == 0:
             first["n"] = len(key.levels[0].points)
 
-    res = list(track(frames, cam, Plane(n0, d0), tuple(ground_region(cam, mount)),
+    res = list(estimate_frames(frames, cam, Plane(n0, d0), tuple(ground_region(cam, mount)),
                      on_keyframe=on_keyframe))
     assert all(r.status.value != "lost" for r in res)
     # the terrain products: every keyframe's points on the ground (height 0 in the true world
     # frame); frame 0's keyframe, anchored on init.yaml's plane, is put on the plane the
     # chain of keyframes found in hindsight (terrain_map's smoothing)
-    heights = {s: (m.points()[0] @ poses[0][:3, :3].T + poses[0][:3, 3])[:, 2] for s, m in maps.items()}
+    drives = {True: smoothed_keyframes(tmap.keyframes), False: None}
+    heights = {s: (tmap.points(d)[0] @ poses[0][:3, :3].T + poses[0][:3, 3])[:, 2]
+               for s, d in drives.items()}
     rms = {s: float(np.sqrt(np.mean(h ** 2))) for s, h in heights.items()}
     rms0 = {s: float(np.sqrt(np.mean(h[:first["n"]] ** 2))) for s, h in heights.items()}
     # (measured: keyframe 0 2.4 cm -> 0.97 cm, all points 1.08 -> 0.56 cm)
@@ -245,7 +247,8 @@ def test_bobbing_drive_from_a_crest_ends_without_the_crests_scale():
     final = np.linalg.norm(res[-1].world_from_cam[:3, 3] - truth[:3, 3])
     assert final / true.sum() < 0.012
     # the trajectory written at the end: keyframe 0's segment re-scaled in hindsight
-    smoothed = hindsight.poses([r.index for r in res], np.array([r.world_from_cam for r in res]))
+    smoothed = smoothed_poses([r.index for r in res], np.array([r.world_from_cam for r in res]),
+                              [(k.index, k) for k in recorder.keyframes])
     final_h = np.linalg.norm(smoothed[-1][:3, 3] - truth[:3, 3])
     assert final_h / true.sum() < 0.002 and final_h < 0.5 * final  # (measured 0.35 -> 0.12 %)
 

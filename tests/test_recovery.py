@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from monovo_cli.cli import main
-from monovo_cli.core.odometry import Odometry, track
+from monovo_cli.core.odometry import Odometry, estimate_frames
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.lie import se3_inv, so3_log
@@ -48,7 +48,7 @@ def test_noise_in_the_middle_is_lost_with_a_reason_and_tracking_resumes(drive, t
     _noise_frames(seq, [9, 10, 11])
     cfg = load_init(seq / "init.yaml")
     fs = FrameSequence(seq / "frames")
-    res = list(track(((f.index, f.timestamp, f.image) for f in fs), cfg.camera, cfg.plane,
+    res = list(estimate_frames(((f.index, f.timestamp, f.image) for f in fs), cfg.camera, cfg.plane,
                      cfg.region, TrackOptions()))
     for r in res[9:12]:
         assert r.status == FrameStatus.LOST and r.reason
@@ -71,7 +71,7 @@ def test_a_jump_is_bridged_by_a_fresh_keyframe(drive, tmp_path):
     for k, p in enumerate(paths[8:], start=8):
         shutil.copyfile(sorted((far / "frames").glob("*.png"))[k], p)
     cfg = load_init(seq / "init.yaml")
-    res = list(track(((f.index, f.timestamp, f.image) for f in FrameSequence(seq / "frames")),
+    res = list(estimate_frames(((f.index, f.timestamp, f.image) for f in FrameSequence(seq / "frames")),
                      cfg.camera, cfg.plane, cfg.region, TrackOptions()))
     run = longest = 0
     for r in res:

@@ -20,9 +20,6 @@ from plane_helpers import tilted
 from monovo_cli.core.estimator.estimate import KeyLevel, estimate_motion
 from monovo_cli.core.estimator.ground import LevelPoints
 from monovo_cli.core.estimator.jacobian import project_in_front
-from monovo_cli.core.keyframe import build_keyframe
-from monovo_cli.core.odometry import track
-from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.estimator.relief import (
     MAX_VERTICES_PER_SIDE,
     Relief,
@@ -34,6 +31,9 @@ from monovo_cli.core.estimator.relief import (
     relief_rows,
     solve_relief,
 )
+from monovo_cli.core.keyframe import build_keyframe
+from monovo_cli.core.odometry import estimate_frames
+from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.lie import make_pose, se3_exp, se3_inv, so3_exp, so3_log
 from monovo_cli.geometry.plane import Plane
@@ -504,7 +504,7 @@ def run(seq, relief: bool):
     cfg = load_init(seq / "init.yaml")
     images = [f.image for f in FrameSequence(seq / "frames")]
     keys = []
-    res = list(track(((k, float(k), im) for k, im in enumerate(images)), cfg.camera, cfg.plane,
+    res = list(estimate_frames(((k, float(k), im) for k, im in enumerate(images)), cfg.camera, cfg.plane,
                      cfg.region, TrackOptions(relief=relief), on_keyframe=keys.append))
     return res, keys
 

@@ -9,10 +9,11 @@ import pytest
 from click.testing import CliRunner
 
 from monovo_cli.cli import main
-from monovo_cli.mapping.terrain_map import TerrainMap, ground_frame
 from monovo_cli.geometry.lie import make_pose, so3_exp
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.terrain import HEIGHTMAP_HEADER, heightmap_csv_text, ply_bytes, read_ply
+from monovo_cli.mapping.hindsight import smoothed_keyframes
+from monovo_cli.mapping.terrain_map import TerrainMap, ground_frame
 
 N0 = np.array([0.0, math.cos(math.radians(40)), math.sin(math.radians(40))])
 
@@ -86,17 +87,18 @@ def test_smoothing_puts_a_keyframe_on_the_plane_its_successors_found():
     assert [d[0] for d in smoothed_corrections(links)] == pytest.approx([-0.04, -0.01, 0.0])
     assert smoothed_corrections([None, None, links[2]])[0] == pytest.approx(np.zeros(3))
     for smooth, want in ((True, 1.50), (False, 1.54)):
-        tmap = TerrainMap(far, smooth=smooth)
+        tmap = TerrainMap(far)
         for k, link in enumerate(links):
             key = fake_key(k, X0 if k == 0 else Plane(N0, 1.5).intersect(rays))
             key.link = link
             key.plane = far if k == 0 else Plane(N0, 1.5)
             tmap.add(key)
-        X, _ = tmap.points()
+        drive = smoothed_keyframes(tmap.keyframes) if smooth else None
+        X, _ = tmap.points(drive)
         assert X[5:40] @ N0 == pytest.approx(np.full(35, want), abs=1e-12)
         assert X[:5] @ N0 == pytest.approx(np.full(5, want - 0.1), abs=1e-12)
         assert X[80:] @ N0 == pytest.approx(np.full(40, 1.5), abs=1e-12)  # the last keyframe
-        assert tmap.ground_points()[5:40, 2] == pytest.approx(np.zeros(35), abs=1e-12)
+        assert tmap.ground_points(drive)[5:40, 2] == pytest.approx(np.zeros(35), abs=1e-12)
 
 
 def test_a_keyframe_is_refined_against_its_successor_only_after_a_re_anchor(monkeypatch):
@@ -147,7 +149,7 @@ def test_height_grid_by_hand():
     assert g.height[2, 0] == pytest.approx(-0.05)
     assert np.isnan(g.height[1, 0]) and g.count[1, 0] == 0
     # heightmap.csv: the non-empty cells, their centres back in the world frame
-    lines = heightmap_csv_text(g, tmap.ground_from_world).splitlines()
+    lines = heightmap_csv_text(g, tmap.ground_from_world()).splitlines()
     assert lines[0] == HEIGHTMAP_HEADER and len(lines) == 4
     row = [float(v) for v in lines[1].split(",")]
     assert row[:4] == pytest.approx([0.025, 0.025, 0.05, 2])
@@ -187,9 +189,9 @@ def test_depth_refinement_finds_the_ground_a_wrong_plane_missed():
     """Two views of flat ground 0.4 m apart, exact poses; the keyframe's plane is 2 cm too
     far. The 3 x 3 patches move the points that the images constrain (reported std < 1 cm,
     31 % of them) to 0.48 cm RMS off the ground, from 2 cm (all points in view: 0.79 cm)."""
-    from monovo_cli.mapping.depth import refine_depths
     from monovo_cli.core.estimator.ground import select_points
     from monovo_cli.geometry.lie import se3_inv
+    from monovo_cli.mapping.depth import refine_depths
     from monovo_cli.synth.motion import camera_mount
     from monovo_cli.synth.render import GroundRenderer, default_camera, finish_frame, ground_in_camera
     from monovo_cli.synth.texture import GroundTexture, procedural_texture
@@ -220,9 +222,9 @@ def test_depth_sweep_puts_points_the_relief_misplaced_back_on_the_ground():
     The sweep moves most of them back to within 1 cm and leaves the others where they are
     (measured: 57 % moved, to 0.79 cm RMS; 0.06 % of the others moved). The rest are points
     whose texture runs along their epipolar line: no height is clearly better there."""
-    from monovo_cli.mapping.depth import sweep_depths
     from monovo_cli.core.estimator.ground import select_points
     from monovo_cli.geometry.lie import se3_inv
+    from monovo_cli.mapping.depth import sweep_depths
     from monovo_cli.synth.motion import camera_mount
     from monovo_cli.synth.render import GroundRenderer, default_camera, finish_frame, ground_in_camera
     from monovo_cli.synth.texture import GroundTexture, procedural_texture

@@ -12,7 +12,7 @@ import pytest
 
 from monovo_cli.core.estimator.ground import barycentric
 from monovo_cli.core.keyframe import build_keyframe
-from monovo_cli.core.odometry import track
+from monovo_cli.core.odometry import estimate_frames
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.lie import se3_inv, so3_log
@@ -27,7 +27,7 @@ def _run(seq: Path, options: TrackOptions | None = None):
     frames = FrameSequence(seq / "frames")
     plane = cfg.plane
     gen = ((f.index, f.timestamp, f.image) for f in frames)
-    return list(track(gen, cfg.camera, plane, cfg.region, options or TrackOptions()))
+    return list(estimate_frames(gen, cfg.camera, plane, cfg.region, options or TrackOptions()))
 
 
 @pytest.fixture(scope="module")

@@ -136,11 +136,10 @@ def test_model_with_a_mask_uses_the_mask_from_frame_1(seq, tmp_path):
     assert masked < 0.9 * plain, (masked, plain)  # equal before: the mask waited for a keyframe
     # the model's points on masked pixels are gone, at every level
     from monovo_cli.core.options import TrackOptions
-    from monovo_cli.io.config import load_init
     from monovo_cli.pipeline.preflight import model_keyframe
+    from monovo_cli.pipeline.tracking import open_sequence
 
-    cfg = load_init(seq / "init.yaml")
-    key = model_keyframe(model, FrameSequence(seq), cfg, TrackOptions(), mask == 0)
+    key = model_keyframe(model, open_sequence(seq), TrackOptions(), mask == 0)
     full = load_model(model)[2]
     for lv, (kl, before) in enumerate(zip(key.levels, full.levels)):
         u = kl.points.uv[:, 0] * 2 ** lv  # level-lv pixels at full resolution

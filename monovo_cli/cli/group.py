@@ -18,10 +18,10 @@ from typing import NoReturn
 
 import click
 
-from monovo_cli import __version__
 from monovo_cli.cli.config import config_option
 from monovo_cli.cli.options import BadInput, Verbosity, verbosity_options
 from monovo_cli.errors import MonovoError
+from monovo_cli.version import __version__
 
 log = logging.getLogger("monovo_cli")
 

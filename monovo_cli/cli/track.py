@@ -52,12 +52,13 @@ def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, ski
         s = track_sequence(seq, params, None if to_stdout else Path(out), options,
                            groundtruth=groundtruth, mask=mask, prior=prior, covariance=covariance,
                            model=model, overwrite=overwrite, skip_bad_frames=skip_bad_frames,
-                           topic=topic, terrain_out=terrain_out, progress=bar)
+                           topic=topic, terrain_out=terrain_out, smooth=options.smooth,
+                           progress=bar)
     if not verbosity.quiet:
         click.echo(f"tracked {s.frames} frames in {s.seconds:.1f} s ({s.fps:.1f} frames/s): "
                    f"mean msd {s.mean_msd:.2f}, {s.reanchored} re-anchored, {s.reinit} re-initialised, "
                    f"{s.lost} lost, "
-                   f"path length {s.distance_m:.3f} m"
+                   f"path length {s.path_length:.3f} m"
                    + ("" if to_stdout else f"; outputs in {out}"), err=to_stdout)
     if s.mostly_lost:
         where = "streamed rows kept" if to_stdout else f"outputs kept in {out}"

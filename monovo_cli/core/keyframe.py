@@ -15,10 +15,15 @@ import cv2
 import numpy as np
 
 from monovo_cli.core.estimator.estimate import KeyLevel
-from monovo_cli.core.estimator.ground import default_threshold, rectangle_corners, require_points, select_points
+from monovo_cli.core.estimator.ground import (
+    default_threshold,
+    rectangle_corners,
+    require_points,
+    select_points,
+)
+from monovo_cli.core.estimator.relief import Relief
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane.belief import PlaneLink
-from monovo_cli.core.estimator.relief import Relief
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.plane import Plane

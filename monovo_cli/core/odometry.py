@@ -32,15 +32,15 @@ from functools import partial
 
 import numpy as np
 
-from monovo_cli.core.recovery.bridge import Bridging
 from monovo_cli.core.estimator.estimate import Estimate, coarse_search, estimate_motion
-from monovo_cli.core.keyframe import Keyframe, build_keyframe, footprint
-from monovo_cli.core.plane.motion_covariance import MotionCovariance
-from monovo_cli.core.options import TrackOptions
-from monovo_cli.core.plane.belief import PlaneLink
-from monovo_cli.core.plane.tracker import PlaneTracker
 from monovo_cli.core.estimator.relief import Relief, carried, refine_pose_and_relief
 from monovo_cli.core.estimator.robust import inlier_fraction
+from monovo_cli.core.keyframe import Keyframe, build_keyframe, footprint
+from monovo_cli.core.options import TrackOptions
+from monovo_cli.core.plane.belief import PlaneLink
+from monovo_cli.core.plane.motion_covariance import MotionCovariance
+from monovo_cli.core.plane.tracker import PlaneTracker
+from monovo_cli.core.recovery.bridge import Bridging
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
@@ -404,14 +404,15 @@ def _motion_change(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.concatenate([a[:3, 3] - b[:3, 3], so3_log(a[:3, :3] @ b[:3, :3].T)])
 
 
-def track(frames: Iterable[tuple[int, float, np.ndarray | None]], camera: PinholeCamera,
-          plane: Plane, region: tuple[int, int, int, int], options: TrackOptions | None = None,
-          *, mask: np.ndarray | None = None, first_keyframe: Keyframe | None = None,
-          priors: Mapping[int, np.ndarray] | None = None, sigma_distance: float | None = None,
-          sigma_deg: float | None = None,
-          on_keyframe: Callable[[Keyframe], None] | None = None) -> Iterator[FrameResult]:
+def estimate_frames(frames: Iterable[tuple[int, float, np.ndarray | None]], camera: PinholeCamera,
+                    plane: Plane, region: tuple[int, int, int, int],
+                    options: TrackOptions | None = None, *, mask: np.ndarray | None = None,
+                    first_keyframe: Keyframe | None = None,
+                    priors: Mapping[int, np.ndarray] | None = None,
+                    sigma_distance: float | None = None, sigma_deg: float | None = None,
+                    on_keyframe: Callable[[Keyframe], None] | None = None) -> Iterator[FrameResult]:
     """Yield a :class:`FrameResult` per ``(index, timestamp, image)``, frame 0 first: the one
-    driver of :class:`Odometry` (``monovo track`` runs it too).
+    driver of :class:`Odometry`.
 
     ``image`` (H, W) float32, or None for a frame that could not be read (recorded lost at
     the prediction); frame 0 must have one (it carries the ground model unless

@@ -27,9 +27,9 @@ from typing import Any
 
 import yaml
 
-from monovo_cli import __version__
 from monovo_cli.io.atomic import atomic_write_text
 from monovo_cli.io.frames import FrameSequence
+from monovo_cli.version import __version__
 
 RUN_FILE = "run.yaml"
 FORMAT = "monovo-run-1"

@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from monovo_cli.mapping.terrain_map import HeightGrid
 from monovo_cli.errors import InputError
 from monovo_cli.io.atomic import atomic_write_bytes, atomic_write_text
 from monovo_cli.io.formats import _csv_rows, _floats
+from monovo_cli.mapping.terrain_map import HeightGrid
 
 HEIGHTMAP_HEADER = "right_m,forward_m,height_m,points,x_m,y_m,z_m"
 

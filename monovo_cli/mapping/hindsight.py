@@ -61,15 +61,6 @@ class Anchored(Protocol):
     link: PlaneLink | None
 
 
-@dataclass(frozen=True)
-class KeyRecord:
-    """The :class:`Anchored` part of a keyframe, without its images and points."""
-
-    world_from_key: np.ndarray
-    plane: Plane
-    link: PlaneLink | None
-
-
 def smoothed_distances(keys: Sequence[Anchored],
                        lifts: Sequence[float] | None = None) -> np.ndarray:
     """(K,) each keyframe's distance (m) solved over the whole chain, NaN where its links did
@@ -194,17 +185,37 @@ def smoothed_key_poses(keys: Sequence[Anchored], planes: Sequence[Plane]) -> np.
     return out
 
 
-def smoothed_poses(index: Sequence[int], world_from_cam: np.ndarray,
-                   keys: Sequence[tuple[int, Anchored]], *, segments: bool = True) -> np.ndarray:
-    """(N, 4, 4) the poses ``world_from_cam`` (N, 4, 4) of frames ``index`` (N,), in order,
-    re-scaled with the smoothed planes of ``keys`` (``(frame index, keyframe)``, oldest
-    first): each frame's motion from the latest keyframe at or before it scaled by that
-    keyframe's ``d' / d``. Frames before the first keyframe keep their poses. ``segments``
-    False: the mounting prior at the keyframes alone, as the filter had it (for comparison,
-    ``benchmarks.hindsight``)."""
+@dataclass(frozen=True, eq=False)
+class SmoothedDrive:
+    """A drive's keyframes and poses smoothed in hindsight (module docstring).
+
+    ``key_index`` (K,) the keyframes' frame indices, oldest first; ``planes`` (K) each
+    keyframe's smoothed plane in its own camera frame; ``world_from_key`` (K, 4, 4) their
+    re-scaled poses; ``world_from_cam`` (N, 4, 4) every frame's re-scaled pose.
+    """
+
+    key_index: tuple[int, ...]
+    planes: tuple[Plane, ...]
+    world_from_key: np.ndarray
+    world_from_cam: np.ndarray
+
+    def keyframe(self, index: int) -> tuple[Plane, np.ndarray]:
+        """The smoothed plane and pose ``world_from_key`` (4, 4) of the keyframe at frame
+        ``index``."""
+        a = self.key_index.index(int(index))
+        return self.planes[a], self.world_from_key[a]
+
+
+def smooth_drive(index: Sequence[int], world_from_cam: np.ndarray,
+                 keys: Sequence[tuple[int, Anchored]], *, segments: bool = True) -> SmoothedDrive:
+    """The poses ``world_from_cam`` (N, 4, 4) of frames ``index`` (N,), in order, re-scaled
+    with the smoothed planes of ``keys`` (``(frame index, keyframe)``, oldest first): each
+    frame's motion from the latest keyframe at or before it scaled by that keyframe's
+    ``d' / d``. Frames before the first keyframe keep their poses. ``segments`` False: the
+    mounting prior at the keyframes alone, as the filter had it (for comparison)."""
     W = np.asarray(world_from_cam, dtype=float)
     if not keys:
-        return W.copy()
+        return SmoothedDrive((), (), np.zeros((0, 4, 4)), W.copy())
     anchored = [k for _, k in keys]
     parts = _segments(index, W, keys)
     lifts = [_lift(k, rel) for k, (_, rel) in zip(anchored, parts)] if segments else None
@@ -216,24 +227,18 @@ def smoothed_poses(index: Sequence[int], world_from_cam: np.ndarray,
             continue
         rel[:, :3, 3] *= planes[a].distance / key.plane.distance
         out[rows] = np.einsum("ij,njk->nik", key_poses[a], rel)
-    return out
+    return SmoothedDrive(tuple(int(i) for i, _ in keys), tuple(planes), key_poses, out)
 
 
-class Hindsight:
-    """The keyframes of a run as they come (:meth:`add`, a rebuilt keyframe replacing the
-    one of its index), for :meth:`poses` at the end (module docstring)."""
+def smoothed_keyframes(keys: Sequence[tuple[int, Anchored]]) -> SmoothedDrive:
+    """:func:`smooth_drive` of the keyframes ``keys`` (``(frame index, keyframe)``, oldest
+    first) alone, the mounting prior at each keyframe's own frame: for a map kept without its
+    frames' poses."""
+    W = np.array([k.world_from_key for _, k in keys]).reshape(-1, 4, 4)
+    return smooth_drive([i for i, _ in keys], W, keys, segments=False)
 
-    def __init__(self) -> None:
-        self._keys: dict[int, KeyRecord] = {}
 
-    def add(self, index: int, key: Anchored) -> None:
-        self._keys[int(index)] = KeyRecord(np.array(key.world_from_key), key.plane, key.link)
-
-    def poses(self, index: Sequence[int], world_from_cam: np.ndarray) -> np.ndarray:
-        """:func:`smoothed_poses` of the frames ``index`` over the keyframes added so far."""
-        return smoothed_poses(index, world_from_cam, sorted(self._keys.items()))
-
-    def lifts(self, index: Sequence[int], world_from_cam: np.ndarray) -> dict[int, float]:
-        """:func:`segment_lifts` by keyframe index, for the terrain products' planes."""
-        keys = sorted(self._keys.items())
-        return dict(zip((i for i, _ in keys), segment_lifts(index, world_from_cam, keys)))
+def smoothed_poses(index: Sequence[int], world_from_cam: np.ndarray,
+                   keys: Sequence[tuple[int, Anchored]], *, segments: bool = True) -> np.ndarray:
+    """(N, 4, 4): :func:`smooth_drive`'s ``world_from_cam``."""
+    return smooth_drive(index, world_from_cam, keys, segments=segments).world_from_cam

@@ -42,12 +42,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monovo_cli.mapping.depth import refine_depths, sweep_depths
-from monovo_cli.mapping.hindsight import smoothed_key_poses, smoothed_planes
 from monovo_cli.core.keyframe import Keyframe
 from monovo_cli.core.plane.belief import PlaneLink
 from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.geometry.plane import Plane
+from monovo_cli.mapping.depth import refine_depths, sweep_depths
+from monovo_cli.mapping.hindsight import SmoothedDrive
 
 POINTS_PER_KEYFRAME = 10000  # at most this many of a keyframe's points (every k-th) are kept
 CELL = 0.05  # m, default cell of the height grid
@@ -99,24 +99,27 @@ class TerrainMap:
     """The keyframes' observation points in the world frame (module docstring)."""
 
     def __init__(self, plane: Plane, points_per_keyframe: int = POINTS_PER_KEYFRAME, *,
-                 refine: str | None = "sweep", smooth: bool = True) -> None:
+                 refine: str | None = "sweep") -> None:
         self.plane0 = plane  # (init.yaml's: the ground frame until a keyframe comes)
         self.points_per_keyframe = int(points_per_keyframe)
         self.refine = refine
-        self.smooth = smooth
         self._chunks: dict[int, _Chunk] = {}
         self._last: Keyframe | None = None
         self._last_image: np.ndarray | None = None
         self.refined = 0  # points whose depth the images updated
-        # per keyframe index, its segment's frames' lift (Hindsight.lifts), set before writing
-        self.lifts: dict[int, float] = {}
 
     @property
-    def ground_from_world(self) -> np.ndarray:
-        """4x4: the ground frame (module docstring) of the first keyframe's plane (smoothed)."""
+    def keyframes(self) -> list[tuple[int, _Chunk]]:
+        """``(frame index, keyframe record)`` of every keyframe added, oldest first: what
+        :func:`~monovo_cli.mapping.hindsight.smooth_drive` takes as its ``keys``."""
+        return [(k, self._chunks[k]) for k in sorted(self._chunks)]
+
+    def ground_from_world(self, drive: SmoothedDrive | None = None) -> np.ndarray:
+        """4x4: the ground frame (module docstring) of the first keyframe's plane, as
+        ``drive`` smoothed it (None: as tracked)."""
         if not self._chunks:
             return ground_frame(self.plane0)
-        _, plane, pose = self._smoothed()[0]
+        _, plane, pose = self._placed(drive)[0]
         return ground_frame(plane.in_frame(pose))
 
     def add(self, key: Keyframe, image: np.ndarray | None = None) -> None:
@@ -152,14 +155,13 @@ class TerrainMap:
             X[ok], pts.intensity[::self._step(key)][ok].astype(np.float32),
             np.array(key.world_from_key), key.plane, key.link)
 
-    def _smoothed(self) -> list[tuple[_Chunk, Plane, np.ndarray]]:
-        """Each keyframe's chunk, oldest first, with its plane (its camera) and pose smoothed
-        in hindsight when ``smooth`` (:mod:`monovo_cli.mapping.hindsight`, module docstring)."""
-        chunks = [self._chunks[k] for k in sorted(self._chunks)]
-        if not self.smooth:
-            return [(c, c.plane, c.world_from_key) for c in chunks]
-        planes = smoothed_planes(chunks, [self.lifts.get(k, 0.0) for k in sorted(self._chunks)])
-        return list(zip(chunks, planes, smoothed_key_poses(chunks, planes)))
+    def _placed(self, drive: SmoothedDrive | None) -> list[tuple[_Chunk, Plane, np.ndarray]]:
+        """Each keyframe's chunk, oldest first, with its plane (its camera) and its pose
+        ``world_from_key``: as ``drive`` smoothed them in hindsight (None: as tracked)."""
+        chunks = self.keyframes
+        if drive is None:
+            return [(c, c.plane, c.world_from_key) for _, c in chunks]
+        return [(c, *drive.keyframe(k)) for k, c in chunks]
 
     def _refine(self, key: Keyframe, image: np.ndarray, cur_from_key: np.ndarray) -> None:
         pts = key.levels[0].points
@@ -181,14 +183,15 @@ class TerrainMap:
     def __len__(self) -> int:
         return sum(len(c.X) for c in self._chunks.values())
 
-    def points(self) -> tuple[np.ndarray, np.ndarray]:
+    def points(self, drive: SmoothedDrive | None = None) -> tuple[np.ndarray, np.ndarray]:
         """``(X (N, 3) world frame m, intensity (N,) grey levels)`` of all keyframes, in order:
-        each keyframe's points moved along their rays from its plane to its smoothed plane
-        (keeping their heights off it), then into the world frame with its smoothed pose."""
+        each keyframe's points moved along their rays from its plane to its plane as
+        ``drive`` smoothed it (keeping their heights off it), then into the world frame with
+        its smoothed pose (``drive`` None: the planes and poses as tracked)."""
         if not self._chunks:
             return np.zeros((0, 3)), np.zeros(0, np.float32)
         out = []
-        for c, new, pose in self._smoothed():
+        for c, new, pose in self._placed(drive):
             X = c.X
             if new is not c.plane:
                 h = c.plane.distance - X @ c.plane.normal  # heights off the plane
@@ -197,15 +200,17 @@ class TerrainMap:
         return (np.concatenate(out),
                 np.concatenate([self._chunks[k].intensity for k in sorted(self._chunks)]))
 
-    def ground_points(self) -> np.ndarray:
-        """The points (N, 3) in the ground frame: right, forward, height (m)."""
-        X, _ = self.points()
-        G = self.ground_from_world
+    def ground_points(self, drive: SmoothedDrive | None = None) -> np.ndarray:
+        """The points (N, 3) in the ground frame: right, forward, height (m) (``drive`` as
+        for :meth:`points`)."""
+        X, _ = self.points(drive)
+        G = self.ground_from_world(drive)
         return X @ G[:3, :3].T + G[:3, 3]
 
-    def height_grid(self, cell: float = CELL) -> HeightGrid:
-        """The mean height per ``cell`` x ``cell`` m cell over the points' extent."""
-        P = self.ground_points()
+    def height_grid(self, cell: float = CELL, drive: SmoothedDrive | None = None) -> HeightGrid:
+        """The mean height per ``cell`` x ``cell`` m cell over the points' extent (``drive``
+        as for :meth:`points`)."""
+        P = self.ground_points(drive)
         if not len(P):
             return HeightGrid(0.0, 0.0, cell, np.full((0, 0), np.nan), np.zeros((0, 0), int))
         x0 = np.floor(P[:, 0].min() / cell) * cell

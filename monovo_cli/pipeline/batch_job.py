@@ -17,8 +17,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from monovo_cli import __version__
 from monovo_cli.errors import InputError, MonovoError, OutputError
+from monovo_cli.version import __version__
 
 if TYPE_CHECKING:
     from monovo_cli.core.options import TrackOptions
@@ -229,12 +229,6 @@ def _input_fingerprint(seq_dir: Path, prior: str | None,
     return len(frames), h.hexdigest()
 
 
-def _count_rows(path: Path, header: bool) -> int:
-    with open(path, newline="") as f:
-        n = sum(1 for line in f if line.strip())
-    return n - 1 if header else n
-
-
 def _result(seq_dir: Path, out_dir: Path, **fields: Any) -> dict[str, Any]:
     base = {"sequence": str(seq_dir), "out_dir": str(out_dir), "status": "failed", "frames": None,
             "fps": None, "mean_msd": None, "lost": None, "reanchored": None, "distance_m": None,
@@ -278,33 +272,28 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: dict[str, Any] 
                 raise OutputError(f"{out_dir}: already holds results ({DONE_FILE}); use "
                                   "overwrite (--overwrite / --resume) or another output folder")
             done.unlink()
-        summary = track_sequence(
-            seq_dir, None, out_dir, job.track, overwrite=overwrite,
+        run = track_sequence(
+            seq_dir, None, out_dir, job.track, overwrite=overwrite, smooth=job.track.smooth,
             skip_bad_frames=job.skip_bad_frames,
             mask=Path(job.mask) if job.mask else None,
             prior=_folder(seq_dir) / job.prior if job.prior else None,
             covariance=out_dir / job.covariance if job.covariance else None, topic=job.topic)
         n_frames, fingerprint = _input_fingerprint(seq_dir, job.prior, job.topic)
-        rows = {"motion.csv": (_count_rows(out_dir / "motion.csv", True), n_frames - 1),
-                "trajectory.csv": (_count_rows(out_dir / "trajectory.csv", True), n_frames),
-                "trajectory.tum": (_count_rows(out_dir / "trajectory.tum", False), n_frames)}
-        for name, (got, expected) in rows.items():
-            if got != expected:
-                raise RuntimeError(f"{out_dir / name}: {got} rows after tracking, expected "
-                                   f"{expected} for {n_frames} frames")
+        if run.frames != n_frames:
+            raise RuntimeError(f"{seq_dir}: {run.frames} frames tracked, expected {n_frames}")
         names = list(RESULT_FILES) + ([job.covariance] if job.covariance else [])
         files = {n: {"bytes": (out_dir / n).stat().st_size, "sha256": _sha256(out_dir / n)}
                  for n in names if (out_dir / n).is_file()}
-        stats = {"frames": summary.frames, "fps": summary.fps, "mean_msd": summary.mean_msd,
-                 "lost": summary.lost, "reanchored": summary.reanchored,
-                 "distance_m": summary.distance_m, "seconds": summary.seconds}
+        stats = {"frames": run.frames, "fps": run.fps, "mean_msd": run.mean_msd,
+                 "lost": run.lost, "reanchored": run.reanchored,
+                 "distance_m": run.path_length, "seconds": run.seconds}
         marker = {"format": DONE_FORMAT, "monovo": __version__, "frames": n_frames,
                   "inputs_sha256": fingerprint, "options": asdict(job), "result": stats, "files": files}
         from monovo_cli.io.atomic import atomic_write_text
 
         atomic_write_text(done, json.dumps(marker, indent=1, sort_keys=True) + "\n")
-        if summary.mostly_lost:  # outputs kept, as monovo track's exit status 3
-            return _result(seq_dir, out_dir, error=f"{summary.lost} of {summary.frames - 1} "
+        if run.mostly_lost:  # outputs kept, as monovo track's exit status 3
+            return _result(seq_dir, out_dir, error=f"{run.lost} of {run.frames - 1} "
                            "frames lost (more than half)", error_kind="lost", **stats)
         return _result(seq_dir, out_dir, status="ok", **stats)
     except MonovoError as exc:

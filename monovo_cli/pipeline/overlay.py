@@ -14,7 +14,7 @@ import numpy as np
 
 from monovo_cli.errors import InputError
 from monovo_cli.io.frames import FrameSequence
-from monovo_cli.pipeline.track import open_sequence
+from monovo_cli.pipeline.tracking import open_sequence
 
 if TYPE_CHECKING:
     from monovo_cli.geometry.camera import PinholeCamera
@@ -107,7 +107,8 @@ def overlay_sequence(seq: Path, params: Path | None, trajectory: Path, out: str 
     if every < 1:
         raise InputError(f"--every: expected a whole number >= 1, got {every}")
     t0 = time.perf_counter()
-    frames, cfg = open_sequence(seq, params, topic=topic)
+    opened = open_sequence(seq, params, topic=topic)
+    frames, cfg = opened.frames, opened.config
     trajectory = Path(trajectory)
     poses = _trajectory_by_frame(trajectory, frames)
     motion = trajectory.parent / "motion.csv"

@@ -25,8 +25,8 @@ from monovo_cli.core.keyframe import Keyframe, mask_keyframe
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.errors import InputError, OutputError
 from monovo_cli.image.pyramid import num_levels
-from monovo_cli.io.config import InitConfig
 from monovo_cli.io.frames import FrameSequence
+from monovo_cli.pipeline.tracking import OpenedSequence
 
 log = logging.getLogger(__name__)
 
@@ -116,18 +116,19 @@ def _show(values) -> str:
     return "[" + ", ".join(f"{float(v):.6g}" for v in np.ravel(values)) + "]"
 
 
-def model_keyframe(path: Path, frames: FrameSequence, cfg: InitConfig, options: TrackOptions,
+def model_keyframe(path: Path, opened: OpenedSequence, options: TrackOptions,
                    usable: np.ndarray | None) -> Keyframe:
     """The frame-0 keyframe of the ``--model`` file ``path``, checked against the sequence.
 
     InputError (one line, naming the model) when it was built for another camera, plane or
-    region than init.yaml's ``cfg``, from another frame 0 than ``frames``', or with other
+    region than the sequence's init.yaml, from another frame 0 than its own, or with other
     model options (``--levels``, ``--threshold``, ``--max-points``) than those given in
     ``options`` (None: not given): the model's points are used as built. ``usable`` (the
     ``--mask``, (H, W) bool) is applied to its points.
     """
     from monovo_cli.io.model import image_sha256, load_model, read_model_record
 
+    frames, cfg = opened.frames, opened.config
     cam, region, key = load_model(path)
     record = read_model_record(path)
     fix = "build one with 'monovo init' for these frames and this init.yaml"
@@ -152,7 +153,7 @@ def model_keyframe(path: Path, frames: FrameSequence, cfg: InitConfig, options: 
     if record["frame0_sha256"] is None:
         log.warning("%s: written by an older monovo, it does not say which frame 0 it was "
                     "built from; it is not checked against %s", path, frames.frame_name(0))
-    elif record["frame0_sha256"] != image_sha256(frames.read(0).image):
+    elif record["frame0_sha256"] != image_sha256(opened.first.image):
         raise InputError(f"{path}: model was built from another frame 0 than "
                          f"{frames.frame_name(0)} (is it the model of another sequence?); {fix}")
     _check_model_options(path, key, cam, record["options"], options)

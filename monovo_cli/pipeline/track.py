@@ -1,41 +1,34 @@
-"""``monovo init`` and ``monovo track`` on a sequence: read frames, run the tracker, write.
+"""``monovo init`` and ``monovo track`` on a sequence: the files around a tracking run.
 
-Opening a sequence with its init.yaml, preparing an output folder, building the frame-0
-model (:func:`init_model`), and the tracking run (:func:`track_sequence`) that ties the
-files to the pure core (:mod:`monovo_cli.core.odometry`). Rows of motion.csv are written
-and flushed as frames are done; trajectory.csv / .tum are written atomically at the end,
-every ``checkpoint_every`` frames, and when the run is interrupted, so they always hold
-exactly the frames done, their poses re-scaled in hindsight over those frames
-(:mod:`monovo_cli.mapping.hindsight`; ``TrackOptions.smooth``).
+Preparing an output folder, building the frame-0 model (:func:`init_model`), and the
+tracking run (:func:`track_sequence`) that writes what a
+:class:`~monovo_cli.pipeline.tracking.Tracking` yields. Rows of motion.csv are written and
+flushed as frames are done; trajectory.csv / .tum are written atomically at the end, every
+``checkpoint_every`` frames, and when the run is interrupted, so they always hold exactly
+the frames done, their poses re-scaled in hindsight over those frames
+(:mod:`monovo_cli.mapping.hindsight`) unless ``smooth`` is False.
 """
 
 from __future__ import annotations
 
 import contextlib
-import itertools
 import logging
 import signal
 import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from monovo_cli.geometry.trajectory import path_length
-from monovo_cli.mapping.hindsight import Hindsight
 from monovo_cli.core.keyframe import Keyframe, build_keyframe
-from monovo_cli.core.odometry import FrameResult, track
+from monovo_cli.core.odometry import FrameResult
 from monovo_cli.core.options import TrackOptions
-from monovo_cli.core.status import FrameStatus
-from monovo_cli.mapping.terrain_map import TerrainMap
-from monovo_cli.errors import InputError, OutputError, TrackingError
+from monovo_cli.core.run import TrackRun
+from monovo_cli.errors import InputError, OutputError
 from monovo_cli.io.atomic import atomic_write_text
-from monovo_cli.io.config import InitConfig, check_frame_size, load_init
 from monovo_cli.io.formats import CovarianceWriter, MotionRow, MotionWriter, trajectory_csv_text, tum_text
-from monovo_cli.io.frames import FrameSequence, find_init_yaml, resolve_sequence
 from monovo_cli.io.model import save_model
 from monovo_cli.io.run_record import run_record, write_run_record
 from monovo_cli.pipeline.preflight import (
@@ -45,52 +38,12 @@ from monovo_cli.pipeline.preflight import (
     model_keyframe,
 )
 from monovo_cli.pipeline.products import write_terrain, write_trajectory_plot
+from monovo_cli.pipeline.tracking import Tracking, naming, open_sequence, read_mask, read_prior
 
 log = logging.getLogger(__name__)
 
 RESULT_FILES = ("motion.csv", "trajectory.csv", "trajectory.tum", "trajectory.png",
                 "terrain.ply", "heightmap.png", "heightmap.csv")
-
-
-@dataclass(frozen=True)
-class TrackSummary:
-    frames: int
-    mean_msd: float
-    seconds: float
-    lost: int
-    reanchored: int
-    distance_m: float
-    out_dir: Path | None
-    reinit: int = 0
-
-    @property
-    def mostly_lost(self) -> bool:
-        """More than half of the tracked frames (k >= 1) lost: ``monovo track`` exits 3."""
-        return self.lost > 0.5 * max(self.frames - 1, 0)
-
-    @property
-    def fps(self) -> float:
-        return self.frames / self.seconds if self.seconds > 0 else float("inf")
-
-
-def open_sequence(seq: Path, params: Path | None, *,
-                  topic: str | None = None) -> tuple[FrameSequence, InitConfig]:
-    """The frames of ``seq`` and its init.yaml (``params``, or found beside the frames);
-    ``topic`` the image topic of a ROS bag."""
-    seq_dir = resolve_sequence(Path(seq))
-    frames = FrameSequence(seq_dir, topic=topic)
-    if params is None:
-        params = find_init_yaml(Path(seq))
-        if params is None:
-            raise InputError(f"{seq}: no init.yaml beside the frames; give one with -p init.yaml")
-    cfg = load_init(Path(params))
-    try:
-        first = frames.read(0)
-    except InputError as exc:
-        raise InputError(f"{exc}; frame 0 carries the ground model, replace the file") from None
-    h, w = first.image.shape
-    check_frame_size(cfg, w, h, first.path)
-    return frames, cfg
 
 
 def prepare_out_dir(out_dir: Path, overwrite: bool) -> None:
@@ -123,23 +76,14 @@ def init_model(seq: Path, params: Path | None, out: Path, options: TrackOptions,
     was built with. An existing ``out`` is refused unless ``overwrite``."""
     if Path(out).exists() and not overwrite:
         raise OutputError(f"{out}: already exists; use --overwrite or another -o")
-    frames, cfg = open_sequence(seq, params, topic=topic)
-    usable = _read_mask(Path(mask), cfg) if mask is not None else None
-    first = frames.read(0)
-    with _naming(first.path):
+    opened = open_sequence(seq, params, topic=topic)
+    cfg, first = opened.config, opened.first
+    usable = read_mask(Path(mask), cfg) if mask is not None else None
+    with naming(first.path):
         key = build_keyframe(0, first.image, cfg.camera, cfg.plane, cfg.region, np.eye(4), options,
                              mask=usable)
     save_model(out, key, cfg.camera, cfg.region, frame0=first.image, options=options, mask=usable)
     return key
-
-
-@contextlib.contextmanager
-def _naming(path: Path) -> Iterator[None]:
-    """Prefix a TrackingError (e.g. too few observation points) with the frame it is about."""
-    try:
-        yield
-    except TrackingError as exc:
-        raise TrackingError(f"{path}: {exc}") from None
 
 
 @contextlib.contextmanager
@@ -177,8 +121,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                    skip_bad_frames: bool = False, checkpoint_every: int = 100,
                    groundtruth: Path | None = None, mask: Path | None = None,
                    prior: Path | None = None, covariance: Path | None = None,
-                   topic: str | None = None, terrain_out: bool = False,
-                   progress: Callable[[int, int], None] | None = None) -> TrackSummary:
+                   topic: str | None = None, terrain_out: bool = False, smooth: bool = True,
+                   progress: Callable[[int, int], None] | None = None) -> TrackRun:
     """``monovo track``: estimate every frame's motion and write motion.csv, trajectory.csv
     and trajectory.tum (docs/guide.md "File formats").
 
@@ -196,18 +140,21 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     bag. Every side input is checked before anything is written (:mod:`.preflight`).
     ``terrain_out`` (with an output directory): also terrain.ply, heightmap.png and
     heightmap.csv, what tracking learned of the ground (:func:`~monovo_cli.pipeline.products.write_terrain`).
-    ``progress(done, total)`` is called after every frame.
+    ``smooth`` False writes the trajectory as estimated, not re-scaled in hindsight.
+    ``progress(done, total)`` is called after every frame. Returns the run
+    (:class:`~monovo_cli.core.run.TrackRun`).
     """
     check_covariance_path(covariance, out_dir)
-    frames, cfg = open_sequence(seq, params, topic=topic)
-    usable = _read_mask(Path(mask), cfg) if mask is not None else None
-    priors = _read_prior(Path(prior)) if prior is not None else {}
+    opened = open_sequence(seq, params, topic=topic)
+    frames, cfg = opened.frames, opened.config
+    usable = read_mask(Path(mask), cfg) if mask is not None else None
+    priors = read_prior(Path(prior)) if prior is not None else {}
     gt_poses = groundtruth_poses(Path(groundtruth), frames) if groundtruth is not None else None
     if len(frames) < 2:
         raise InputError(f"{frames.dir}: only {len(frames)} frame; tracking needs at least 2")
     first_key = None
     if model is not None:
-        first_key = model_keyframe(Path(model), frames, cfg, options, usable)
+        first_key = model_keyframe(Path(model), opened, options, usable)
     if out_dir is not None:
         prepare_out_dir(out_dir, overwrite)
         for name in RESULT_FILES:  # stale results of an earlier run must not survive
@@ -223,147 +170,58 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
         stream = open(Path(out_dir) / "motion.csv", "w", newline="")
     else:
         stream = sys.stdout
-    results: list[tuple[int, float, np.ndarray]] = []
-    hindsight = Hindsight() if options.smooth else None
 
-    def final_poses() -> np.ndarray:
-        idx, _, poses = zip(*results)
-        return hindsight.poses(idx, np.array(poses)) if hindsight else np.array(poses)
+    def stopped(index: int) -> str:
+        return (f"the rows of frames 1..{index - 1} went to stdout" if out_dir is None
+                else f"frames 0..{index - 1} are kept in {out_dir}")
 
-    def flush_trajectory() -> None:
-        if out_dir is None or not results:
+    tracking = Tracking(opened, options, mask=usable, priors=priors, first_keyframe=first_key,
+                        skip_bad_frames=skip_bad_frames, smooth=smooth,
+                        terrain=terrain_out and out_dir is not None, stopped=stopped)
+
+    index: list[int] = []  # the frames done, in order, and their times
+    times: list[float] = []
+
+    def write_trajectory(poses: np.ndarray) -> None:
+        if out_dir is None or not len(poses):
             return
-        idx, ts, _ = zip(*results)
-        poses = final_poses()
-        atomic_write_text(Path(out_dir) / "trajectory.csv", trajectory_csv_text(idx, ts, poses))
-        atomic_write_text(Path(out_dir) / "trajectory.tum", tum_text(ts, poses))
+        atomic_write_text(Path(out_dir) / "trajectory.csv", trajectory_csv_text(index, times, poses))
+        atomic_write_text(Path(out_dir) / "trajectory.tum", tum_text(times, poses))
 
-    msds, lost, reanchored, reinit = [], 0, 0, 0
+    run: TrackRun | None = None
     cov_writer = None
     t0 = time.perf_counter()
     try:
         writer = MotionWriter(stream, with_std=True, with_reason=True)
         cov_writer = CovarianceWriter(_open_output(Path(covariance))) if covariance else None
-        terrain = TerrainMap(cfg.plane, smooth=options.smooth) \
-            if terrain_out and out_dir is not None else None
-        images = _LastImage(_read_frames(frames, skip_bad_frames, out_dir), keep=terrain)
-
-        def on_keyframe(key: Keyframe) -> None:
-            if hindsight is not None:
-                hindsight.add(key.index, key)
-            if terrain is not None:
-                terrain.add(key, images.last)
-
-        tracked = track(images, cfg.camera, cfg.plane, cfg.region, options, mask=usable,
-                        first_keyframe=first_key, priors=priors, on_keyframe=on_keyframe,
-                        sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg)
-        with _naming(frames.paths[0]):  # frame 0 builds the ground model
-            first = next(tracked)
-        prev = None
-        dist, last_lost = 0.0, False
-        for res in itertools.chain([first], tracked):
-            last_lost = res.status == FrameStatus.LOST
+        for res in tracking.results(record=False):
             with _signals_held():
-                results.append((res.index, res.timestamp, res.world_from_cam))
+                tracking.record(res)
+                index.append(res.index)
+                times.append(res.timestamp)
                 if res.index > 0:
                     writer.write(_row(res))
                     if cov_writer is not None:
                         cov_writer.write(res.index, res.covariance)
-                    msds.append(res.msd)
-                    lost += res.status == FrameStatus.LOST
-                    reanchored += res.status == FrameStatus.REANCHORED
-                    reinit += res.status == FrameStatus.REINIT
                     if res.reason:
                         log.info("frame %d %s: %s", res.index, res.status, res.reason)
-                    dist += float(np.linalg.norm(res.world_from_cam[:3, 3] - prev[:3, 3]))
-                prev = res.world_from_cam
-                if checkpoint_every and len(results) % checkpoint_every == 0:
-                    flush_trajectory()
+                if checkpoint_every and tracking.done % checkpoint_every == 0:
+                    write_trajectory(tracking.trajectory())
             if progress is not None:
-                progress(len(results), len(frames))
+                progress(tracking.done, len(frames))
+        run = tracking.result(time.perf_counter() - t0)
     finally:
         with _signals_held():
-            flush_trajectory()
+            write_trajectory(run.trajectory if run is not None else tracking.trajectory())
             if out_dir is not None:
                 stream.close()
             if cov_writer is not None:
                 cov_writer.close()
-    seconds = time.perf_counter() - t0
     if out_dir is not None:
-        poses = final_poses()
-        # the path of the trajectory written (re-scaled in hindsight), as trajectory.png's
-        dist = path_length(poses)
-        write_trajectory_plot(Path(out_dir), cfg.plane, [i for i, _, _ in results], poses,
-                               gt_poses)
-        if terrain is not None:
-            terrain.finish(None if last_lost else images.last, results[-1][2])
-            if hindsight is not None:
-                idx, _, raw = zip(*results)
-                terrain.lifts = hindsight.lifts(idx, np.array(raw))
-            write_terrain(Path(out_dir), terrain, poses)
-    return TrackSummary(len(results), float(np.mean(msds)) if msds else 0.0, seconds, lost,
-                        reanchored, dist, Path(out_dir) if out_dir is not None else None, reinit)
-
-
-class _LastImage:
-    """Iterates ``frames`` and, when ``keep`` is set, remembers the last image (``last``)."""
-
-    def __init__(self, frames: Iterator[tuple[int, float, np.ndarray | None]], keep) -> None:
-        self._frames, self._keep, self.last = frames, keep is not None, None
-
-    def __iter__(self):
-        return self
-
-    def __next__(self) -> tuple[int, float, np.ndarray | None]:
-        index, ts, image = next(self._frames)
-        if self._keep:
-            self.last = image
-        return index, ts, image
-
-
-def _read_frames(frames: FrameSequence, skip_bad_frames: bool,
-                 out_dir: Path | None) -> Iterator[tuple[int, float, np.ndarray | None]]:
-    """``(index, timestamp, image)`` of every frame for :func:`~monovo_cli.core.odometry.track`.
-
-    A frame that cannot be read stops the run with an InputError, or with ``skip_bad_frames``
-    (after frame 0) comes as ``image`` None, which the tracker records as lost.
-    """
-    for index in range(len(frames)):
-        try:
-            frame = frames.read(index)
-        except InputError as exc:
-            if index == 0 or not skip_bad_frames:
-                kept = (f"the rows of frames 1..{index - 1} went to stdout" if out_dir is None
-                        else f"frames 0..{index - 1} are kept in {out_dir}")
-                raise InputError(f"{exc}; tracking stopped at frame {index} ({kept}); replace "
-                                 "the file, or use --skip-bad-frames to record bad frames as "
-                                 "lost and go on") from None
-            log.warning("%s; recorded as lost (--skip-bad-frames)", exc)
-            yield index, float(frames.timestamps[index]), None
-        else:
-            yield frame.index, frame.timestamp, frame.image
-
-
-def _read_mask(path: Path, cfg: InitConfig) -> np.ndarray:
-    """--mask PNG -> (H, W) bool of usable pixels (the PNG's non-zero pixels are excluded)."""
-    from monovo_cli.io.frames import read_gray
-
-    img = read_gray(path)
-    if img.shape != (cfg.camera.height, cfg.camera.width):
-        raise InputError(f"{path}: mask is {img.shape[1]}x{img.shape[0]} but frames are "
-                         f"{cfg.camera.width}x{cfg.camera.height}")
-    usable = img <= 0
-    if not usable.any():
-        raise InputError(f"{path}: the mask excludes every pixel (non-zero pixels are excluded)")
-    return usable
-
-
-def _read_prior(path: Path) -> dict[int, np.ndarray]:
-    """--prior CSV (motion.csv's columns) -> {frame: T_{k-1}_k}."""
-    from monovo_cli.io.formats import read_motion_csv
-
-    idx, poses, _ = read_motion_csv(path)
-    return {int(k): p for k, p in zip(idx, poses)}
+        write_trajectory_plot(Path(out_dir), cfg.plane, run, gt_poses)
+        if tracking.terrain is not None:
+            write_terrain(Path(out_dir), tracking.terrain, run.trajectory, tracking.drive)
+    return run
 
 
 def _open_output(path: Path):

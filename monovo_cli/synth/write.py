@@ -50,7 +50,6 @@ import cv2
 import numpy as np
 import yaml
 
-from monovo_cli import __version__
 from monovo_cli.errors import InputError, OutputError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import make_pose, se3_inv
@@ -96,6 +95,7 @@ from monovo_cli.synth.texture import (
     procedural_texture,
     procedural_texture_size,
 )
+from monovo_cli.version import __version__
 
 PRESETS = ("drive", "pairs", "mer")
 TEXTURES = ("procedural", "gravel")  # built-in names of texture=

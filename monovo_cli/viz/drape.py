@@ -30,8 +30,8 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from monovo_cli.mapping.terrain_map import HeightGrid
 from monovo_cli.geometry.lie import se3_inv
+from monovo_cli.mapping.terrain_map import HeightGrid
 from monovo_cli.viz.draw import SHIFT
 from monovo_cli.viz.overlay import OverlayRenderer, clip_polygon, frustum_halfspaces
 

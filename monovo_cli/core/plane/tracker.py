@@ -19,7 +19,6 @@ import numpy as np
 
 from monovo_cli.core.estimator.estimate import Estimate, EstimatorOptions, estimate_motion
 from monovo_cli.core.keyframe import Keyframe, build_keyframe
-from monovo_cli.core.plane.motion_covariance import PlaneConsistency
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane.belief import (
     CONFIRMED_DEG,
@@ -44,6 +43,7 @@ from monovo_cli.core.plane.belief import (
     transported,
 )
 from monovo_cli.core.plane.fit import refine_plane_and_motion
+from monovo_cli.core.plane.motion_covariance import PlaneConsistency
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import orthonormalize

@@ -1,0 +1,172 @@
+"""One tracking run's result in memory: what every frame and keyframe left.
+
+:class:`RunRecorder` collects the :class:`~monovo_cli.core.odometry.FrameResult` of each frame
+and every keyframe anchored as the tracking loop yields them; :meth:`RunRecorder.result`
+freezes them into a :class:`TrackRun`, the one value that the products, the plots, the
+evaluation and batch's summary read (no layer reads back a file the run wrote).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from monovo_cli.core.keyframe import Keyframe
+from monovo_cli.core.plane.belief import PlaneLink
+from monovo_cli.core.status import FrameStatus
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.geometry.trajectory import path_length
+
+
+@dataclass(frozen=True)
+class KeyRecord:
+    """What a keyframe leaves for the work after the run, without its images and points.
+
+    ``index`` the frame it was anchored on; ``world_from_key`` (4, 4) its pose T_0_key;
+    ``plane`` its ground in its own camera frame; ``link`` how that plane was fused with the
+    previous keyframe's (None for the first keyframe and after a re-initialisation).
+    """
+
+    index: int
+    world_from_key: np.ndarray
+    plane: Plane
+    link: PlaneLink | None
+
+    @classmethod
+    def of(cls, key: Keyframe) -> KeyRecord:
+        return cls(int(key.index), np.array(key.world_from_key), key.plane, key.link)
+
+
+@dataclass(frozen=True, eq=False)
+class TrackRun:
+    """A tracking run over N frames, frame 0 first (docs/guide.md "File formats").
+
+    Per frame: ``index`` (N,) int; ``timestamp`` (N,) s; ``world_from_cam`` (N, 4, 4) T_0_k as
+    estimated frame by frame (motion.csv's poses, causal); ``prev_from_cur`` (N, 4, 4)
+    T_{k-1}_k (the identity for frame 0); ``status`` (N,) :class:`FrameStatus`; ``reason``
+    (N,) why a frame was not ``ok`` ("" otherwise); ``msd`` (N,) grey levels^2;
+    ``iterations`` (N,); ``points`` (N,); ``std`` (N, 6) of (tx, ty, tz) m and (rx, ry, rz)
+    rad of ``prev_from_cur`` (NaN where none); ``covariance`` (N, 6, 6) the same as a matrix.
+    ``keyframes``: every keyframe anchored, oldest first (a keyframe rebuilt in place
+    replaces its earlier record). ``trajectory`` (N, 4, 4): the poses written to
+    trajectory.csv / .tum, ``world_from_cam`` re-scaled in hindsight
+    (:mod:`monovo_cli.mapping.hindsight`) or ``world_from_cam`` itself. ``seconds``: the
+    wall-clock time of the run.
+    """
+
+    index: np.ndarray
+    timestamp: np.ndarray
+    world_from_cam: np.ndarray
+    prev_from_cur: np.ndarray
+    status: tuple[FrameStatus, ...]
+    reason: tuple[str, ...]
+    msd: np.ndarray
+    iterations: np.ndarray
+    points: np.ndarray
+    std: np.ndarray
+    covariance: np.ndarray
+    keyframes: tuple[KeyRecord, ...]
+    trajectory: np.ndarray
+    seconds: float = 0.0
+
+    @property
+    def frames(self) -> int:
+        """N, frame 0 included."""
+        return len(self.index)
+
+    def count(self, status: FrameStatus) -> int:
+        """How many frames after frame 0 have ``status``."""
+        return sum(s == status for s in self.status[1:])
+
+    @property
+    def lost(self) -> int:
+        return self.count(FrameStatus.LOST)
+
+    @property
+    def reanchored(self) -> int:
+        return self.count(FrameStatus.REANCHORED)
+
+    @property
+    def reinit(self) -> int:
+        return self.count(FrameStatus.REINIT)
+
+    @property
+    def mostly_lost(self) -> bool:
+        """More than half of the tracked frames (k >= 1) lost (``monovo track`` exits 3)."""
+        return self.lost > 0.5 * max(self.frames - 1, 0)
+
+    @property
+    def mean_msd(self) -> float:
+        """The mean of the frames' msd after frame 0 (grey levels^2; 0 with none)."""
+        return float(np.mean(self.msd[1:])) if self.frames > 1 else 0.0
+
+    @property
+    def path_length(self) -> float:
+        """The length (m) of the camera path through ``trajectory``."""
+        return path_length(self.trajectory)
+
+    @property
+    def fps(self) -> float:
+        return self.frames / self.seconds if self.seconds > 0 else float("inf")
+
+
+class RunRecorder:
+    """Collects a run as the tracking loop yields it: :meth:`add` every frame's result in
+    order, :meth:`add_keyframe` every keyframe anchored or rebuilt in place."""
+
+    def __init__(self) -> None:
+        self._frames: list = []
+        self._keys: dict[int, KeyRecord] = {}
+
+    def __len__(self) -> int:
+        return len(self._frames)
+
+    def add(self, res) -> None:
+        """``res``: a :class:`~monovo_cli.core.odometry.FrameResult`."""
+        self._frames.append(res)
+
+    def add_keyframe(self, key: Keyframe) -> None:
+        self._keys[int(key.index)] = KeyRecord.of(key)
+
+    @property
+    def index(self) -> list[int]:
+        return [r.index for r in self._frames]
+
+    @property
+    def timestamp(self) -> list[float]:
+        return [r.timestamp for r in self._frames]
+
+    @property
+    def world_from_cam(self) -> np.ndarray:
+        """(n, 4, 4) the poses of the frames added so far."""
+        return np.array([r.world_from_cam for r in self._frames])
+
+    @property
+    def keyframes(self) -> tuple[KeyRecord, ...]:
+        return tuple(self._keys[k] for k in sorted(self._keys))
+
+    @property
+    def last_status(self) -> FrameStatus | None:
+        return self._frames[-1].status if self._frames else None
+
+    def result(self, trajectory: np.ndarray | None = None, seconds: float = 0.0) -> TrackRun:
+        """The :class:`TrackRun` of the frames added; ``trajectory`` (n, 4, 4) the poses to
+        write (None: the poses as estimated)."""
+        f = self._frames
+        W = self.world_from_cam.reshape(-1, 4, 4)
+        return TrackRun(
+            index=np.array([r.index for r in f], dtype=np.int64),
+            timestamp=np.array([r.timestamp for r in f], dtype=float),
+            world_from_cam=W,
+            prev_from_cur=np.array([r.prev_from_cur for r in f]).reshape(-1, 4, 4),
+            status=tuple(FrameStatus(r.status) for r in f),
+            reason=tuple(r.reason for r in f),
+            msd=np.array([r.msd for r in f], dtype=float),
+            iterations=np.array([r.iterations for r in f], dtype=np.int64),
+            points=np.array([r.points for r in f], dtype=np.int64),
+            std=np.array([r.std for r in f], dtype=float).reshape(-1, 6),
+            covariance=np.array([r.covariance for r in f], dtype=float).reshape(-1, 6, 6),
+            keyframes=self.keyframes,
+            trajectory=W if trajectory is None else np.asarray(trajectory, dtype=float),
+            seconds=float(seconds))
