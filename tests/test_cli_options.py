@@ -20,8 +20,7 @@ import monovo_cli.core.options as core_options
 import monovo_cli.pipeline.batch as batch
 import monovo_cli.pipeline.track as track
 from monovo_cli.cli import main
-from monovo_cli.core.estimator.estimate import EstimatorOptions
-from monovo_cli.core.options import ALL_POINTS, TrackOptions, options_from_dict
+from monovo_cli.core.options import ALL_POINTS, EstimatorOptions, TrackOptions, options_from_dict
 from monovo_cli.pipeline.batch_job import job_options, normalize_options
 
 ALL_GIVEN = ["--levels", "3", "--threshold", "5", "--max-points", "all", "--robust", "tukey",
