@@ -15,13 +15,11 @@ import traceback
 from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from monovo_cli import __version__
+from monovo_cli.core.options import TrackOptions, options_from_dict
 from monovo_cli.errors import InputError, MonovoError, OutputError
-
-if TYPE_CHECKING:
-    from monovo_cli.core.options import TrackOptions
 
 FRAMES_SUBDIR = "frames"  # as monovo_cli.io.frames (not imported here: it loads OpenCV)
 INIT_FILE = "init.yaml"
@@ -31,12 +29,6 @@ THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"
 DONE_FORMAT = 2  # 2: options as dataclasses.asdict(JobOptions), every tracking setting
 
 log = logging.getLogger(__name__)
-
-
-def _default_track_options() -> TrackOptions:
-    from monovo_cli.core.options import TrackOptions  # loads OpenCV: not at import time
-
-    return TrackOptions()
 
 
 @dataclass(frozen=True)
@@ -52,7 +44,7 @@ class JobOptions:
     into ``done.json``; :func:`normalize_options` completes and checks such a dict.
     """
 
-    track: TrackOptions = field(default_factory=_default_track_options)
+    track: TrackOptions = field(default_factory=TrackOptions)
     mask: str | None = None
     prior: str | None = None
     covariance: str | None = None
@@ -173,8 +165,6 @@ def job_options(options: Mapping[str, Any] | JobOptions | None) -> JobOptions:
     """
     if isinstance(options, JobOptions):
         return options
-    from monovo_cli.core.options import options_from_dict
-
     options = dict(options or {})
     for key in ("mask", "prior", "covariance"):
         if options.get(key) is not None:
