@@ -86,6 +86,16 @@ def test_given_tracking_options_set_their_fields_and_only_those(calls, tmp_path)
     assert r.exit_code == 2 and "no such option" in r.output.lower() and "--no-photometric" in r.output
 
 
+def test_no_smooth_is_an_output_choice_passed_on_only_when_given(calls, tmp_path):
+    assert "smooth" not in {f.name for f in dataclasses.fields(TrackOptions)}
+    _run("track", "seq", "-o", str(tmp_path / "o"))
+    assert "smooth" not in calls["track"][1]  # the pipeline's default applies
+    _run("track", "seq", "-o", str(tmp_path / "o"), "--no-smooth")
+    assert calls["track"][0] == TrackOptions() and calls["track"][1]["smooth"] is False
+    _run("batch", "root", "-o", str(tmp_path / "b"), "--no-smooth")
+    assert calls["batch"][0]["smooth"] is False
+
+
 def test_no_option_restates_a_library_default():
     """Every option that is not a flag defaults to None ("not given"), so the library's
     default applies; flags default to their absence."""

@@ -196,7 +196,7 @@ import sys
 from pathlib import Path
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.pipeline.track import track_sequence
-track_sequence(Path(sys.argv[1]), None, Path(sys.argv[2]), TrackOptions(smooth=False),
+track_sequence(Path(sys.argv[1]), None, Path(sys.argv[2]), TrackOptions(), smooth=False,
                checkpoint_every=1)
 """
 

@@ -9,10 +9,12 @@ import click
 from monovo_cli.cli.group import BadInput, common, log_level, progress_bar
 from monovo_cli.cli.options import (
     LOOP,
+    given,
     output_option,
     overwrite_option,
     side_inputs,
     skip_bad_frames_option,
+    smooth_option,
     topic_option,
     track_options,
 )
@@ -41,10 +43,11 @@ from monovo_cli.cli.options import (
 @skip_bad_frames_option("the sequence fails")
 @topic_option
 @side_inputs(batch=True)
+@smooth_option
 @track_options(LOOP)
 @common
 def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, overwrite,
-          skip_bad_frames, topic, mask, prior, covariance, options):
+          skip_bad_frames, topic, mask, prior, covariance, smooth, options):
     """Track every sequence under ROOT (each a folder holding frames/ and init.yaml,
     or a video or ROS bag beside an init.yaml).
 
@@ -69,7 +72,7 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
                                "the complete sequences, --overwrite redoes all")
     job = {"track": dataclasses.asdict(options), "mask": mask.resolve() if mask else None,
            "prior": prior, "covariance": covariance, "skip_bad_frames": skip_bad_frames,
-           "topic": topic}
+           "topic": topic, **given(smooth=smooth)}
     if verbosity.quiet:
         redirect = contextlib.nullcontext()
     else:  # warnings about failed sequences above the bar, not through it

@@ -278,11 +278,6 @@ _TRACK_OPTIONS = {
         "--plane-only", "relief", field="relief", flag_value=False,
         help="Keep the paper's one plane per keyframe: no relief (heights on a grid) solved "
              "with the motion where the ground is not flat."),
-    "smooth": _track_option(
-        "--no-smooth", "smooth", field="smooth", flag_value=False,
-        help="Write trajectory.csv/.tum (and the terrain products) as the motions were "
-             "streamed, without re-scaling them with the keyframe planes smoothed over the "
-             "whole drive."),
     "max_step": _track_option(
         "--max-step", field=("max_step_m", "max_step_deg"), callback=parse_max_step,
         metavar="M[,DEG]",
@@ -291,7 +286,7 @@ _TRACK_OPTIONS = {
 #: The options of the ground model and the estimator (init).
 MODEL = ("levels", "threshold", "max_points", "robust", "reanchor_fraction")
 #: ... and of the sequence loop (track, batch).
-LOOP = (*MODEL, "photometric", "relief", "smooth", "max_step")
+LOOP = (*MODEL, "photometric", "relief", "max_step")
 
 
 def track_options(names: tuple[str, ...]):
@@ -312,6 +307,13 @@ def track_options(names: tuple[str, ...]):
 
     return decorate
 
+
+#: --no-smooth: an output choice, not a tracking one (track, batch); the command passes it on
+#: only when given (``given(smooth=smooth)``).
+smooth_option = click.option(
+    "--no-smooth", "smooth", cls=LibraryDefault, flag_value=False, default_text=lambda: None,
+    help="Write trajectory.csv/.tum (and the terrain products) as the motions were streamed, "
+         "without re-scaling them with the keyframe planes smoothed over the whole drive.")
 
 #: --mask: pixels never used (init, track, batch).
 mask_option = click.option("--mask", type=click.Path(path_type=Path), default=None,

@@ -120,9 +120,6 @@ class TrackOptions:
     With ``relief``, a keyframe that is left gets the heights of its ground off its plane,
     solved with the motion of the frame that leaves it where the images show them
     (:mod:`monovo_cli.core.estimator.relief`); they are carried to the next keyframe.
-    With ``smooth``, what is written at the end of a run (trajectory.csv / .tum and the
-    terrain products) has each keyframe's segment re-scaled with its plane smoothed over the
-    whole drive (:mod:`monovo_cli.mapping.hindsight`); motion.csv stays causal either way.
     """
 
     levels: int | None = None
@@ -143,7 +140,6 @@ class TrackOptions:
     max_step_m: float | None = None
     max_step_deg: float | None = None
     relief: bool = True
-    smooth: bool = True
     estimator: EstimatorOptions = field(default_factory=EstimatorOptions)
     features: FeatureOptions = field(default_factory=_tracking_features)
 

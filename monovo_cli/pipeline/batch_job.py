@@ -38,7 +38,8 @@ class JobOptions:
     PNG for every sequence (an absolute path); ``prior``, a motion CSV's path relative to
     each sequence folder; ``covariance``, a CSV's path relative to each output folder;
     ``skip_bad_frames``, as ``monovo track --skip-bad-frames``; ``topic``, the image topic
-    of the sequences that are ROS bags.
+    of the sequences that are ROS bags; ``smooth``, the trajectory re-scaled in hindsight
+    (as ``smooth`` of :func:`~monovo_cli.pipeline.track.track_sequence`).
 
     Travels as ``dataclasses.asdict(JobOptions(...))``, a JSON-able dict, and is written so
     into ``done.json``; :func:`normalize_options` completes and checks such a dict.
@@ -50,6 +51,7 @@ class JobOptions:
     covariance: str | None = None
     skip_bad_frames: bool = False
     topic: str | None = None
+    smooth: bool = True
 
 
 # --------------------------------------------------------------------------- discovery
@@ -273,7 +275,8 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: dict[str, Any] 
             skip_bad_frames=job.skip_bad_frames,
             mask=Path(job.mask) if job.mask else None,
             prior=_folder(seq_dir) / job.prior if job.prior else None,
-            covariance=out_dir / job.covariance if job.covariance else None, topic=job.topic)
+            covariance=out_dir / job.covariance if job.covariance else None, topic=job.topic,
+            smooth=job.smooth)
         n_frames, fingerprint = _input_fingerprint(seq_dir, job.prior, job.topic)
         rows = {"motion.csv": (_count_rows(out_dir / "motion.csv", True), n_frames - 1),
                 "trajectory.csv": (_count_rows(out_dir / "trajectory.csv", True), n_frames),

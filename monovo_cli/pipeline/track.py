@@ -6,7 +6,7 @@ files to the pure core (:mod:`monovo_cli.core.odometry`). Rows of motion.csv are
 and flushed as frames are done; trajectory.csv / .tum are written atomically at the end,
 every ``checkpoint_every`` frames, and when the run is interrupted, so they always hold
 exactly the frames done, their poses re-scaled in hindsight over those frames
-(:mod:`monovo_cli.mapping.hindsight`; ``TrackOptions.smooth``).
+(:mod:`monovo_cli.mapping.hindsight`; ``smooth`` of :func:`track_sequence`).
 """
 
 from __future__ import annotations
@@ -177,7 +177,7 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                    skip_bad_frames: bool = False, checkpoint_every: int = 100,
                    groundtruth: Path | None = None, mask: Path | None = None,
                    prior: Path | None = None, covariance: Path | None = None,
-                   topic: str | None = None, terrain_out: bool = False,
+                   topic: str | None = None, terrain_out: bool = False, smooth: bool = True,
                    progress: Callable[[int, int], None] | None = None) -> TrackSummary:
     """``monovo track``: estimate every frame's motion and write motion.csv, trajectory.csv
     and trajectory.tum (docs/guide.md "File formats").
@@ -196,6 +196,9 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     bag. Every side input is checked before anything is written (:mod:`.preflight`).
     ``terrain_out`` (with an output directory): also terrain.ply, heightmap.png and
     heightmap.csv, what tracking learned of the ground (:func:`~monovo_cli.pipeline.products.write_terrain`).
+    With ``smooth``, what is written at the end (trajectory.csv / .tum and the terrain
+    products) has each keyframe's segment re-scaled with its plane smoothed over the whole
+    drive (:mod:`monovo_cli.mapping.hindsight`); motion.csv stays causal either way.
     ``progress(done, total)`` is called after every frame.
     """
     check_covariance_path(covariance, out_dir)
@@ -217,14 +220,15 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
             "track", options, {"sequence": Path(seq), "params": cfg.path,
                                "topic": topic, "model": model, "mask": mask, "prior": prior,
                                "covariance": covariance, "groundtruth": groundtruth,
-                               "skip_bad_frames": skip_bad_frames, "overwrite": overwrite},
+                               "skip_bad_frames": skip_bad_frames, "overwrite": overwrite,
+                               "smooth": smooth},
             frames, cfg.path, {"model": model, "mask": mask, "prior": prior,
                                "groundtruth": groundtruth}))
         stream = open(Path(out_dir) / "motion.csv", "w", newline="")
     else:
         stream = sys.stdout
     results: list[tuple[int, float, np.ndarray]] = []
-    hindsight = Hindsight() if options.smooth else None
+    hindsight = Hindsight() if smooth else None
 
     def final_poses() -> np.ndarray:
         idx, _, poses = zip(*results)
@@ -244,7 +248,7 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     try:
         writer = MotionWriter(stream, with_std=True, with_reason=True)
         cov_writer = CovarianceWriter(_open_output(Path(covariance))) if covariance else None
-        terrain = TerrainMap(cfg.plane, smooth=options.smooth) \
+        terrain = TerrainMap(cfg.plane, smooth=smooth) \
             if terrain_out and out_dir is not None else None
         images = _LastImage(_read_frames(frames, skip_bad_frames, out_dir), keep=terrain)
 
