@@ -63,16 +63,17 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
       monovo batch archive -o results --scheduler tcp://head:8786
     """
     import contextlib
-    import dataclasses
 
     from monovo_cli.pipeline.batch import run_batch
+    from monovo_cli.pipeline.batch_job import JobOptions
 
     if resume and overwrite:
         raise click.UsageError("--resume and --overwrite exclude each other: --resume keeps "
                                "the complete sequences, --overwrite redoes all")
-    job = {"track": dataclasses.asdict(options), "mask": mask.resolve() if mask else None,
-           "prior": prior, "covariance": covariance, "skip_bad_frames": skip_bad_frames,
-           "topic": topic, **given(smooth=smooth)}
+    job = JobOptions(track=options, mask=str(mask.resolve()) if mask else None,
+                     prior=str(prior) if prior else None,
+                     covariance=str(covariance) if covariance else None,
+                     skip_bad_frames=skip_bad_frames, topic=topic, **given(smooth=smooth))
     if verbosity.quiet:
         redirect = contextlib.nullcontext()
     else:  # warnings about failed sequences above the bar, not through it
