@@ -24,10 +24,10 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import AXES, axis_table, machine, motion_errors, one_core
-from monovo_cli.core.estimator.estimate import EstimatorOptions, residuals
+from monovo_cli.core.estimator.estimate import residuals
 from monovo_cli.core.keyframe import build_keyframe
 from monovo_cli.core.odometry import estimate_frames
-from monovo_cli.core.options import ALL_POINTS, TrackOptions
+from monovo_cli.core.options import ALL_POINTS, EstimatorOptions, TrackOptions
 from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.image.sampling import INTERPOLATION
 from monovo_cli.io.config import load_init

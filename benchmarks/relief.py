@@ -33,10 +33,10 @@ import numpy as np
 import monovo_cli.core.odometry as odometry
 import monovo_cli.core.plane.tracker as plane_tracker
 from benchmarks.common import machine, one_core
-from monovo_cli.core.estimator.estimate import EstimatorOptions, KeyLevel, estimate_motion
+from monovo_cli.core.estimator.estimate import KeyLevel, estimate_motion
 from monovo_cli.core.estimator.relief import plane_axes, refine_pose_and_relief
 from monovo_cli.core.keyframe import build_keyframe
-from monovo_cli.core.options import TrackOptions
+from monovo_cli.core.options import EstimatorOptions, TrackOptions
 from monovo_cli.geometry.lie import se3_inv, so3_exp, so3_log
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.image.pyramid import build_pyramid

@@ -5,6 +5,9 @@ still an upward dependency.
 """
 
 import ast
+import os
+import subprocess
+import sys
 from pathlib import Path
 
 PKG = Path(__file__).resolve().parents[1] / "monovo_cli"
@@ -136,3 +139,14 @@ def test_the_estimator_stands_alone():
         bad += [f"{mod} -> {d}" for d in deps if d.startswith("monovo_cli.core.")
                 and not d.startswith("monovo_cli.core.estimator") and d != "monovo_cli.core.options"]
     assert not bad, bad
+
+
+def test_the_options_load_neither_numpy_nor_opencv():
+    """Building tracking options (the command line, a batch worker before it limits its
+    threads) imports the standard library only."""
+    check = ("import sys, monovo_cli.core.options; "
+             "loaded = sorted({'numpy', 'cv2'} & set(sys.modules)); "
+             "assert not loaded, loaded")
+    run = subprocess.run([sys.executable, "-c", check], cwd=PKG.parent, capture_output=True,
+                         text=True, env={**os.environ, "PYTHONPATH": str(PKG.parent)})
+    assert run.returncode == 0, run.stderr

@@ -12,10 +12,11 @@ import pytest
 from click.testing import CliRunner
 
 from monovo_cli.cli import main
+from monovo_cli.core.options import EstimatorOptions, TrackOptions
 from monovo_cli.errors import InputError
 from monovo_cli.pipeline import batch
 from monovo_cli.pipeline.batch import run_batch
-from monovo_cli.pipeline.batch_job import find_sequences, is_complete, track_one
+from monovo_cli.pipeline.batch_job import JobOptions, find_sequences, is_complete, track_one
 from monovo_cli.synth.write import synthesize
 
 GOOD = ("a/s1", "a/s2", "b/deep/s3", "s4", "s10")
@@ -81,8 +82,8 @@ def test_track_one_returns_the_error_of_a_bad_sequence(archive, tmp_path):
     res = track_one(archive / BROKEN, tmp_path / "o")
     assert res["status"] == "failed" and res["error_kind"] == "input"
     assert "init.yaml: not valid YAML" in res["error"]
-    with pytest.raises(ValueError, match="unknown option"):
-        track_one(archive / "s4", tmp_path / "o", {"levles": 3})
+    with pytest.raises(TypeError, match="expected JobOptions"):  # a programming error
+        track_one(archive / "s4", tmp_path / "o", {"levels": 3})
 
 
 def test_local_batch_tracks_all_but_the_broken_one(archive, local_out):
@@ -140,8 +141,8 @@ def test_resume_redoes_only_the_incomplete(archive, local_out, tmp_path):
         for name in COMPARED:
             assert (out / rel / name).read_bytes() == (local_out / rel / name).read_bytes()
     # other tracking options: nothing is complete any more
-    assert is_complete(archive / "s4", out / "s4", {"track": {"estimator": {"robust": "tukey"}}}) == (
-        False, "tracked with other options")
+    tukey = JobOptions(track=TrackOptions(estimator=EstimatorOptions(robust="tukey")))
+    assert is_complete(archive / "s4", out / "s4", tukey) == (False, "tracked with other options")
 
 
 def test_dask_local_cluster_gives_identical_outputs(archive, local_out, tmp_path):

@@ -1,4 +1,4 @@
-"""The CLI's options: TrackOptions is their only source of defaults; batch ships them as a dict.
+"""The CLI's options: TrackOptions is their only source of defaults; batch ships them as JobOptions.
 
 The library calls are replaced by fakes that record what the commands pass, so these tests
 check the command line itself and run in well under a second.
@@ -9,6 +9,7 @@ from __future__ import annotations
 import dataclasses
 import inspect
 import json
+import pickle
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -20,9 +21,8 @@ import monovo_cli.core.options as core_options
 import monovo_cli.pipeline.batch as batch
 import monovo_cli.pipeline.track as track
 from monovo_cli.cli import main
-from monovo_cli.core.estimator.estimate import EstimatorOptions
-from monovo_cli.core.options import ALL_POINTS, TrackOptions, options_from_dict
-from monovo_cli.pipeline.batch_job import job_options, normalize_options
+from monovo_cli.core.options import ALL_POINTS, EstimatorOptions, TrackOptions, options_from_dict
+from monovo_cli.pipeline.batch_job import JobOptions
 
 ALL_GIVEN = ["--levels", "3", "--threshold", "5", "--max-points", "all", "--robust", "tukey",
              "--reanchor-fraction", "0.5", "--no-photometric", "--max-step", "0.5,10"]
@@ -65,11 +65,7 @@ def test_unset_tracking_options_are_exactly_the_dataclass_defaults(calls, tmp_pa
     _run("batch", "root", "-o", str(tmp_path / "b"))
     assert calls["track"][0] == TrackOptions()
     assert calls["init"][0] == TrackOptions()
-    job = calls["batch"][0]
-    assert job["track"] == dataclasses.asdict(TrackOptions())
-    assert job_options(job) == job_options(None)
-    assert {k: job[k] for k in ("mask", "prior", "covariance", "skip_bad_frames")} == {
-        "mask": None, "prior": None, "covariance": None, "skip_bad_frames": False}
+    assert calls["batch"][0] == JobOptions()
 
 
 def test_given_tracking_options_set_their_fields_and_only_those(calls, tmp_path):
@@ -77,14 +73,24 @@ def test_given_tracking_options_set_their_fields_and_only_those(calls, tmp_path)
     assert calls["track"][0] == ALL_GIVEN_OPTIONS
     _run("batch", "root", "-o", str(tmp_path / "b"), *ALL_GIVEN, "--prior", "wheel.csv")
     job = calls["batch"][0]
-    assert options_from_dict(TrackOptions, job["track"]) == ALL_GIVEN_OPTIONS
-    assert job["prior"] == Path("wheel.csv")
+    assert job.track == ALL_GIVEN_OPTIONS
+    assert job.prior == "wheel.csv"
     # --max-step without degrees leaves max_step_deg at its default
     _run("track", "seq", "-o", str(tmp_path / "o2"), "--max-step", "0.25")
     assert calls["track"][0] == dataclasses.replace(TrackOptions(), max_step_m=0.25)
     # init takes the ground model's options only
     r = CliRunner().invoke(main, ["init", "seq", "-o", str(tmp_path / "m"), "--no-photometric"])
     assert r.exit_code == 2 and "no such option" in r.output.lower() and "--no-photometric" in r.output
+
+
+def test_no_smooth_is_an_output_choice_passed_on_only_when_given(calls, tmp_path):
+    assert "smooth" not in {f.name for f in dataclasses.fields(TrackOptions)}
+    _run("track", "seq", "-o", str(tmp_path / "o"))
+    assert "smooth" not in calls["track"][1]  # the pipeline's default applies
+    _run("track", "seq", "-o", str(tmp_path / "o"), "--no-smooth")
+    assert calls["track"][0] == TrackOptions() and calls["track"][1]["smooth"] is False
+    _run("batch", "root", "-o", str(tmp_path / "b"), "--no-smooth")
+    assert calls["batch"][0].smooth is False
 
 
 def test_no_option_restates_a_library_default():
@@ -120,17 +126,24 @@ def test_help_reads_the_defaults_from_the_library(monkeypatch):
     assert f"Variance of the added Gaussian noise (grey levels^2).  [default: {noise_var};" in r.output
 
 
-def test_batch_options_survive_json_and_are_checked():
-    opts = normalize_options({"track": ALL_GIVEN_OPTIONS, "mask": Path("/m.png")})
-    back = json.loads(json.dumps(opts))
-    assert back == opts  # what done.json holds compares equal to what a rerun asks for
-    assert job_options(back).track == ALL_GIVEN_OPTIONS and job_options(back).mask == "/m.png"
-    assert normalize_options({"track": {"estimator": {"robust": "none"}}})["track"] == (
-        dataclasses.asdict(TrackOptions(estimator=EstimatorOptions(robust="none"))))
+def test_batch_options_pickle_and_their_record_survives_json():
+    job = JobOptions(track=ALL_GIVEN_OPTIONS, mask="/m.png")
+    assert pickle.loads(pickle.dumps(job)) == job  # as they travel to the workers
+    record = dataclasses.asdict(job)
+    assert json.loads(json.dumps(record)) == record  # done.json compares equal on a rerun
+    assert options_from_dict(JobOptions, record) == job
+
+
+def test_options_from_dict_keeps_the_fields_not_given():
+    assert options_from_dict(TrackOptions, {"estimator": {"robust": "none"}}) == (
+        TrackOptions(estimator=EstimatorOptions(robust="none")))
+    # a nested field keeps TrackOptions' default for it, not its class's
+    features = options_from_dict(TrackOptions, {"features": {"seed": 3}}).features
+    assert features == dataclasses.replace(TrackOptions().features, seed=3)
     with pytest.raises(ValueError, match="unknown option.*robustt of EstimatorOptions"):
-        normalize_options({"track": {"estimator": {"robustt": "none"}}})
-    with pytest.raises(ValueError, match="unknown option.*robust of JobOptions"):
-        normalize_options({"robust": "none"})
+        options_from_dict(TrackOptions, {"estimator": {"robustt": "none"}})
+    with pytest.raises(ValueError, match="unknown option.*robust of TrackOptions"):
+        options_from_dict(TrackOptions, {"robust": "none"})
 
 
 # ----------------------------------------------------------------------------- -q / -v

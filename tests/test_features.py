@@ -14,9 +14,8 @@ import numpy as np
 import pytest
 
 from benchmarks.common import MER_HEIGHT, mer_camera, mer_pose, mer_renderer
+from monovo_cli.core.options import FeatureOptions, TrackOptions
 from monovo_cli.core.recovery.features import (
-    CHEAP,
-    FeatureOptions,
     detect_features,
     feature_motion,
     ground_mask,
@@ -137,7 +136,10 @@ def test_mer_spacing_motions_are_recovered(scene, name, g1, tol_m, tol_deg):
     assert np.abs(h[:, :2] / h[:, 2:] - truth[seen]).max() < 5.0
 
 
-@pytest.mark.parametrize("options", [CHEAP, FeatureOptions(level=1, features=1000)])
+TRACKING = TrackOptions().features  # the tracker's: a level chosen by the frame size
+
+
+@pytest.mark.parametrize("options", [TRACKING, FeatureOptions(level=1, features=1000)])
 def test_cheap_modes_are_close_enough_for_the_direct_search(scene, options):
     """Fewer features, or detected at half resolution (keypoints scaled back to full)."""
     cam, renderer, g0, img0, plane = scene
@@ -149,7 +151,7 @@ def test_cheap_modes_are_close_enough_for_the_direct_search(scene, options):
 
 
 def test_cheap_level_keeps_the_shorter_side_near_256_px():
-    levels = [CHEAP.level_for(PinholeCamera(w, h, 100.0, 100.0, w / 2, h / 2))
+    levels = [TRACKING.level_for(PinholeCamera(w, h, 100.0, 100.0, w / 2, h / 2))
               for w, h in ((256, 256), (384, 384), (512, 512), (1024, 1024), (1241, 376), (2048, 600))]
     assert levels == [0, 0, 1, 2, 0, 1]
     assert FeatureOptions().level_for(PinholeCamera(1024, 1024, 1.0, 1.0, 0.0, 0.0)) == 0

@@ -9,10 +9,12 @@ import click
 from monovo_cli.cli.group import BadInput, common, log_level, progress_bar
 from monovo_cli.cli.options import (
     LOOP,
+    given,
     output_option,
     overwrite_option,
     side_inputs,
     skip_bad_frames_option,
+    smooth_option,
     topic_option,
     track_options,
 )
@@ -41,10 +43,11 @@ from monovo_cli.cli.options import (
 @skip_bad_frames_option("the sequence fails")
 @topic_option
 @side_inputs(batch=True)
+@smooth_option
 @track_options(LOOP)
 @common
 def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, overwrite,
-          skip_bad_frames, topic, mask, prior, covariance, options):
+          skip_bad_frames, topic, mask, prior, covariance, smooth, options):
     """Track every sequence under ROOT (each a folder holding frames/ and init.yaml,
     or a video or ROS bag beside an init.yaml).
 
@@ -60,16 +63,17 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
       monovo batch archive -o results --scheduler tcp://head:8786
     """
     import contextlib
-    import dataclasses
 
     from monovo_cli.pipeline.batch import run_batch
+    from monovo_cli.pipeline.batch_job import JobOptions
 
     if resume and overwrite:
         raise click.UsageError("--resume and --overwrite exclude each other: --resume keeps "
                                "the complete sequences, --overwrite redoes all")
-    job = {"track": dataclasses.asdict(options), "mask": mask.resolve() if mask else None,
-           "prior": prior, "covariance": covariance, "skip_bad_frames": skip_bad_frames,
-           "topic": topic}
+    job = JobOptions(track=options, mask=str(mask.resolve()) if mask else None,
+                     prior=str(prior) if prior else None,
+                     covariance=str(covariance) if covariance else None,
+                     skip_bad_frames=skip_bad_frames, topic=topic, **given(smooth=smooth))
     if verbosity.quiet:
         redirect = contextlib.nullcontext()
     else:  # warnings about failed sequences above the bar, not through it

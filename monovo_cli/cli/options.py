@@ -16,6 +16,8 @@ from typing import Any
 
 import click
 
+import monovo_cli.core.options as core_options
+
 # --------------------------------------------------------------------------- every command
 
 
@@ -144,11 +146,9 @@ class MaxPoints(click.ParamType):
     name = "N|all"
 
     def convert(self, value, param, ctx):
-        from monovo_cli.core.options import ALL_POINTS, TrackOptions
-
         if str(value).strip().lower() == "all":
-            return ALL_POINTS
-        least = TrackOptions().min_points
+            return core_options.ALL_POINTS
+        least = core_options.TrackOptions().min_points
         try:  # text from the command line, a number from --config
             if isinstance(value, bool) or (isinstance(value, float) and not value.is_integer()):
                 raise ValueError(value)
@@ -205,9 +205,7 @@ def given(**values: Any) -> dict[str, Any]:
 
 def track_default(field: str) -> Any:
     """The default of the TrackOptions field ``field`` (dotted: ``estimator.robust``)."""
-    from monovo_cli.core.options import TrackOptions
-
-    value = TrackOptions()
+    value = core_options.TrackOptions()
     for part in field.split("."):
         value = getattr(value, part)
     return value
@@ -233,8 +231,6 @@ class TrackOption(LibraryDefault):
 def build_track_options(values: dict[str | tuple[str, ...], Any]):
     """TrackOptions from ``{field: value}`` of :class:`TrackOption` s: the values given (not
     None), the dataclass defaults for the rest."""
-    from monovo_cli.core.options import TrackOptions, options_from_dict
-
     nested: dict[str, Any] = {}
     for field, value in values.items():
         if value is None:
@@ -247,7 +243,7 @@ def build_track_options(values: dict[str | tuple[str, ...], Any]):
                 for parent in parents:
                     node = node.setdefault(parent, {})
                 node[leaf] = v
-    return options_from_dict(TrackOptions, nested)
+    return core_options.options_from_dict(core_options.TrackOptions, nested)
 
 
 def _track_option(*decls: str, **attrs: Any):
@@ -282,11 +278,6 @@ _TRACK_OPTIONS = {
         "--plane-only", "relief", field="relief", flag_value=False,
         help="Keep the paper's one plane per keyframe: no relief (heights on a grid) solved "
              "with the motion where the ground is not flat."),
-    "smooth": _track_option(
-        "--no-smooth", "smooth", field="smooth", flag_value=False,
-        help="Write trajectory.csv/.tum (and the terrain products) as the motions were "
-             "streamed, without re-scaling them with the keyframe planes smoothed over the "
-             "whole drive."),
     "max_step": _track_option(
         "--max-step", field=("max_step_m", "max_step_deg"), callback=parse_max_step,
         metavar="M[,DEG]",
@@ -295,7 +286,7 @@ _TRACK_OPTIONS = {
 #: The options of the ground model and the estimator (init).
 MODEL = ("levels", "threshold", "max_points", "robust", "reanchor_fraction")
 #: ... and of the sequence loop (track, batch).
-LOOP = (*MODEL, "photometric", "relief", "smooth", "max_step")
+LOOP = (*MODEL, "photometric", "relief", "max_step")
 
 
 def track_options(names: tuple[str, ...]):
@@ -316,6 +307,13 @@ def track_options(names: tuple[str, ...]):
 
     return decorate
 
+
+#: --no-smooth: an output choice, not a tracking one (track, batch); the command passes it on
+#: only when given (``given(smooth=smooth)``).
+smooth_option = click.option(
+    "--no-smooth", "smooth", cls=LibraryDefault, flag_value=False, default_text=lambda: None,
+    help="Write trajectory.csv/.tum (and the terrain products) as the motions were streamed, "
+         "without re-scaling them with the keyframe planes smoothed over the whole drive.")
 
 #: --mask: pixels never used (init, track, batch).
 mask_option = click.option("--mask", type=click.Path(path_type=Path), default=None,

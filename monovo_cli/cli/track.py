@@ -9,11 +9,13 @@ import click
 from monovo_cli.cli.group import common, progress_bar
 from monovo_cli.cli.options import (
     LOOP,
+    given,
     output_option,
     overwrite_option,
     sequence_inputs,
     side_inputs,
     skip_bad_frames_option,
+    smooth_option,
     track_options,
 )
 
@@ -32,10 +34,11 @@ from monovo_cli.cli.options import (
                    "(the keyframes' points with intensity, world frame) and the driven strip's "
                    "heights above frame 0's ground, heightmap.png and heightmap.csv.")
 @side_inputs()
+@smooth_option
 @track_options(LOOP)
 @common
 def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, skip_bad_frames,
-          terrain_out, mask, prior, covariance, options):
+          terrain_out, mask, prior, covariance, smooth, options):
     """Estimate the motion of every frame of SEQ; write motion.csv and the trajectory.
 
     With -o DIR also trajectory.png, the path seen from above on the ground plane, and with
@@ -52,8 +55,8 @@ def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, ski
         s = track_sequence(seq, params, None if to_stdout else Path(out), options,
                            groundtruth=groundtruth, mask=mask, prior=prior, covariance=covariance,
                            model=model, overwrite=overwrite, skip_bad_frames=skip_bad_frames,
-                           topic=topic, terrain_out=terrain_out, smooth=options.smooth,
-                           progress=bar)
+                           topic=topic, terrain_out=terrain_out, progress=bar,
+                           **given(smooth=smooth))
     if not verbosity.quiet:
         click.echo(f"tracked {s.frames} frames in {s.seconds:.1f} s ({s.fps:.1f} frames/s): "
                    f"mean msd {s.mean_msd:.2f}, {s.reanchored} re-anchored, {s.reinit} re-initialised, "

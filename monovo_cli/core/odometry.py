@@ -117,7 +117,8 @@ class Odometry:
         self._key_image: np.ndarray | None = None  # the keyframe's image (plane test)
         # the keyframe the last step left, with the relief it measured (terrain products)
         self.retired: list[Keyframe] = []
-        self._bridging = Bridging(camera, mask=mask, region=region)  # the feature hypothesis
+        self._bridging = Bridging(camera, options=self.options.features, mask=mask,
+                                  region=region)  # the feature hypothesis
         self._key_msd: float | None = None  # msd of the first frame fitted to the keyframe
         self._lost_run = 0  # frames lost in a row
 

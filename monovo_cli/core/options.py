@@ -1,9 +1,9 @@
 """The tracking options, and options dataclasses from plain (JSON-able) dicts.
 
-:class:`TrackOptions` (with the :class:`~monovo_cli.core.estimator.estimate.EstimatorOptions` it
+:class:`TrackOptions` (with the :class:`EstimatorOptions` and :class:`FeatureOptions` it
 nests) is the one place where a tracking default is written. The command line builds it
-from the options the user gave; ``monovo batch`` sends it to its workers as
-``dataclasses.asdict(options)`` and rebuilds it there with :func:`options_from_dict`.
+from the options the user gave (:func:`options_from_dict`). Standard library only, so that
+reading or building options loads neither numpy nor OpenCV.
 """
 
 from __future__ import annotations
@@ -11,13 +11,79 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
-from monovo_cli.core.estimator.estimate import EstimatorOptions
+if TYPE_CHECKING:
+    from monovo_cli.geometry.camera import PinholeCamera
 
 T = TypeVar("T")
 
 ALL_POINTS = 1 << 30  # max_points meaning "no cap" (`--max-points all`)
+
+
+@dataclass(frozen=True)
+class EstimatorOptions:
+    """Gauss-Newton settings. ``min_msd_decrease`` is the paper's delta_2 (relative)."""
+
+    max_iterations: int = 30
+    min_msd_decrease: float = 1e-6
+    step_tolerance_px: float = 3e-3
+    robust: str = "huber"            # "huber", "tukey" or "none"
+    huber_k: float = 1.345
+    tukey_c: float = 4.685
+    photometric: bool = True
+    min_valid_points: int = 20
+    interpolation: str = "cubic"     # at the finest level: OpenCV's "cubic" (Keys), "linear"
+    #                                  or "lanczos4" (image.sampling.INTERPOLATION)
+
+
+@dataclass(frozen=True)
+class FeatureOptions:
+    """Settings of :func:`~monovo_cli.core.recovery.features.feature_motion`.
+
+    ``level``: detect on pyramid level ``level`` (``cv2.pyrDown``, each halves the image; 0 is
+    full resolution), or with None on the coarsest level whose shorter side keeps at least
+    ``detect_side`` px (:meth:`level_for`: the cost stays about the same at any frame size);
+    ``features``: ORB's cap per image; ``fast_threshold``: ORB's FAST
+    threshold (grey levels); ``ratio``: Lowe's ratio test on the two nearest Hamming
+    neighbours (0: cross-check instead); ``ransac_px``: RANSAC inlier threshold in
+    full-resolution pixels, scaled by ``2**level``; ``min_inliers`` / ``min_inlier_ratio``:
+    below these the hypothesis is None; ``min_plane_consistency``: the ratio of the two
+    tangent singular values (:mod:`monovo_cli.core.recovery.features`, step 3) below which
+    the matched surface is not taken for the plane; ``min_depression_deg``: keyframe pixels
+    whose rays dip less than this below the plane's horizon are not used; ``refine``: the
+    6-parameter Levenberg-Marquardt on the inliers after the homography; ``seed``: OpenCV's
+    RNG seed.
+    """
+
+    level: int | None = 0
+    detect_side: int = 256
+    features: int = 2000
+    fast_threshold: int = 10
+    ratio: float = 0.8
+    ransac_px: float = 3.0
+    ransac_iterations: int = 2000
+    min_inliers: int = 15
+    min_inlier_ratio: float = 0.15
+    min_plane_consistency: float = 0.5
+    min_depression_deg: float = 1.0
+    refine: bool = True
+    seed: int = 0
+
+    def level_for(self, camera: PinholeCamera) -> int:
+        """The pyramid level features are detected on for frames of ``camera``."""
+        if self.level is not None:
+            return int(self.level)
+        level, side = 0, min(camera.width, camera.height)
+        while side // 2 >= self.detect_side:
+            level, side = level + 1, side // 2
+        return level
+
+
+def _tracking_features() -> FeatureOptions:
+    """The tracker's feature settings: detected on the coarsest pyramid level whose shorter
+    side keeps ``detect_side`` px, at most 1000 features per image."""
+    return FeatureOptions(level=None, features=1000)
 
 
 @dataclass(frozen=True)
@@ -40,7 +106,11 @@ class TrackOptions:
     Capture range: after a failed prediction, at the standing start and while recovering,
     the rotation search and (``feature_hypothesis``) an ORB + homography motion over the
     known plane (:mod:`monovo_cli.core.recovery.features`) each start the direct estimator; the best
-    fit wins. After ``reinit_after`` lost frames in a row a fresh keyframe is anchored on the
+    fit wins. ``features`` are that hypothesis' settings, which also bridge lost frames
+    (:mod:`monovo_cli.core.recovery.bridge`); by default they detect on the coarsest pyramid
+    level whose shorter side keeps ``detect_side`` px, with fewer features than
+    :class:`FeatureOptions`' own defaults, so that their cost does not grow with the frame
+    size. After ``reinit_after`` lost frames in a row a fresh keyframe is anchored on the
     current frame with the mounting plane (status ``reinit``), its pose bridged by the
     prediction.
     A frame is lost when fewer than ``min_inliers`` of its points agree within the noise,
@@ -50,9 +120,6 @@ class TrackOptions:
     With ``relief``, a keyframe that is left gets the heights of its ground off its plane,
     solved with the motion of the frame that leaves it where the images show them
     (:mod:`monovo_cli.core.estimator.relief`); they are carried to the next keyframe.
-    With ``smooth``, what is written at the end of a run (trajectory.csv / .tum and the
-    terrain products) has each keyframe's segment re-scaled with its plane smoothed over the
-    whole drive (:mod:`monovo_cli.mapping.hindsight`); motion.csv stays causal either way.
     """
 
     levels: int | None = None
@@ -73,31 +140,36 @@ class TrackOptions:
     max_step_m: float | None = None
     max_step_deg: float | None = None
     relief: bool = True
-    smooth: bool = True
     estimator: EstimatorOptions = field(default_factory=EstimatorOptions)
+    features: FeatureOptions = field(default_factory=_tracking_features)
 
 
 def options_from_dict(cls: type[T], data: Mapping[str, Any]) -> T:
     """An instance of the frozen dataclass ``cls`` from ``data``, a dict of some of its fields.
 
     Fields missing from ``data`` keep the dataclass defaults; a field holding a dataclass
-    (e.g. ``estimator``) may be given as a dict of some of its own fields, so that
-    ``options_from_dict(cls, dataclasses.asdict(x)) == x`` and
+    (e.g. ``estimator``) may be given as a dict of some of its own fields, the others keeping
+    that field's default, so that ``options_from_dict(cls, dataclasses.asdict(x)) == x`` and
     ``options_from_dict(TrackOptions, {"estimator": {"robust": "tukey"}})`` changes only the
     M-estimator. Values are not converted (JSON keeps ints, floats, strings, None).
 
     Raises ValueError naming the keys that are not fields (a programming error, not bad input).
     """
-    defaults = cls()
-    names = [f.name for f in dataclasses.fields(cls)]
+    return _replaced(cls(), data)
+
+
+def _replaced(base: T, data: Mapping[str, Any]) -> T:
+    """``base`` (a frozen dataclass instance) with the fields in ``data`` replaced, a nested
+    dataclass field from a dict of some of its own fields (see :func:`options_from_dict`)."""
+    names = [f.name for f in dataclasses.fields(base)]
     unknown = sorted(set(data) - set(names))
     if unknown:
-        raise ValueError(f"unknown option(s) {', '.join(map(str, unknown))} of {cls.__name__}; "
-                         f"expected some of {', '.join(names)}")
+        raise ValueError(f"unknown option(s) {', '.join(map(str, unknown))} of "
+                         f"{type(base).__name__}; expected some of {', '.join(names)}")
     values = {}
     for name, value in data.items():
-        default = getattr(defaults, name)
-        if dataclasses.is_dataclass(default) and isinstance(value, Mapping):
-            value = options_from_dict(type(default), value)
+        current = getattr(base, name)
+        if dataclasses.is_dataclass(current) and isinstance(value, Mapping):
+            value = _replaced(current, value)
         values[name] = value
-    return cls(**values)
+    return dataclasses.replace(base, **values)

@@ -3,7 +3,7 @@
 Tracking inside one sequence is sequential; sequences are independent, so an archive scales
 out over sequences. The per-sequence pieces live in :mod:`monovo_cli.pipeline.batch_job`
 (and are importable from here): ``find_sequences``, ``track_one`` (one sequence, a pure
-function of plain arguments that returns a plain dict and never raises for a bad sequence:
+function of picklable arguments that returns a plain dict and never raises for a bad sequence:
 the thing to hand to ``dask.distributed``'s ``client.submit``, Ray's ``ray.remote`` or any
 other engine), ``is_complete`` (the ``done.json`` marker) and ``write_summary``. This module
 schedules them: :func:`run_batch` runs every sequence on a local ``ProcessPoolExecutor``
@@ -34,13 +34,14 @@ from monovo_cli.errors import MonovoError, OutputError
 from monovo_cli.pipeline.batch_job import (
     DONE_FILE,
     THREAD_VARIABLES,
+    JobOptions,
+    _job_options,
     _result,
     available_cores,
     done_result,
     find_sequences,
     is_complete,
     limit_threads,
-    normalize_options,
     sequence_name,
     track_one,
 )
@@ -80,7 +81,7 @@ def _init_worker(log_level: int) -> None:
     limit_threads()
 
 
-def _pool_task(task: Callable[..., dict], seq_dir: str, out_dir: str, options: dict,
+def _pool_task(task: Callable[..., dict], seq_dir: str, out_dir: str, options: JobOptions,
                overwrite: bool) -> dict:
     try:
         return task(seq_dir, out_dir, options, overwrite=overwrite)
@@ -105,7 +106,7 @@ def _terminate(executor: ProcessPoolExecutor) -> None:
         p.join(timeout=30)
 
 
-def _run_pool(jobs: list[_Job], workers: int, task: Callable[..., dict], options: dict,
+def _run_pool(jobs: list[_Job], workers: int, task: Callable[..., dict], options: JobOptions,
               overwrite: bool, on_result: Callable[[_Job, dict], None], log_level: int) -> None:
     """Run ``jobs`` on a ``ProcessPoolExecutor`` of ``workers`` spawned processes.
 
@@ -181,7 +182,7 @@ def _import_distributed(what: str):
 
 
 def _run_dask(jobs: list[_Job], scheduler: str | None, workers: int, task: Callable[..., dict],
-              options: dict, overwrite: bool, on_result: Callable[[_Job, dict], None],
+              options: JobOptions, overwrite: bool, on_result: Callable[[_Job, dict], None],
               retries: int, log_level: int = logging.WARNING) -> None:
     """Run ``jobs`` on the Dask scheduler at ``scheduler``, or on a LocalCluster of
     ``workers`` single-threaded worker processes when it is None.
@@ -277,7 +278,7 @@ def _existing_results(out_dir: Path) -> bool:
     return any((out_dir / n).exists() for n in (*RESULT_FILES, DONE_FILE))
 
 
-def run_batch(root: str | Path, out_root: str | Path, options: dict[str, Any] | None = None, *,
+def run_batch(root: str | Path, out_root: str | Path, options: JobOptions | None = None, *,
               pattern: str | None = None, workers: int | None = None,
               scheduler: str | None = None, dask: bool = False, resume: bool = False,
               overwrite: bool = False, retries: int = 2, log_level: int = logging.WARNING,
@@ -288,10 +289,8 @@ def run_batch(root: str | Path, out_root: str | Path, options: dict[str, Any] | 
 
     Sequences come from :func:`find_sequences` (``pattern``: a glob). Each is tracked by
     ``task`` (:func:`track_one`, or a function of the same signature) with ``options``
-    (:class:`~monovo_cli.pipeline.batch_job.JobOptions` or a dict of some of its fields,
-    e.g. ``{"track": dataclasses.asdict(TrackOptions(...)), "skip_bad_frames": True}``;
-    the tasks get it as the complete JSON-able dict of :func:`normalize_options`), on a
-    local pool of ``workers`` spawned processes
+    (:class:`~monovo_cli.pipeline.batch_job.JobOptions`, None for the defaults; the tasks
+    get the dataclass itself, pickled), on a local pool of ``workers`` spawned processes
     (default: :func:`available_cores`), on a Dask LocalCluster of ``workers`` processes
     (``dask``), or on the Dask scheduler at ``scheduler`` (``tcp://HOST:PORT``; its workers
     must see ``root`` and ``out_root`` at the same paths and have monovo installed).
@@ -305,11 +304,11 @@ def run_batch(root: str | Path, out_root: str | Path, options: dict[str, Any] | 
     ``progress(done, total)`` is called as sequences finish (skipped ones count as done).
 
     Raises MonovoError for a bad root, pattern, output root or executor (Dask missing or
-    unreachable), ValueError for unknown option keys.
+    unreachable), TypeError for ``options`` that are not JobOptions.
     """
     t0 = time.perf_counter()
     root, out_root = Path(root), Path(out_root)
-    opts = normalize_options(options)
+    opts = _job_options(options)
     if resume and overwrite:
         raise MonovoError("choose one of resume (skip complete sequences) and overwrite "
                           "(redo all)")

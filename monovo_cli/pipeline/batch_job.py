@@ -12,16 +12,14 @@ import os
 import socket
 import time
 import traceback
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+from monovo_cli.core.options import TrackOptions
 from monovo_cli.errors import InputError, MonovoError, OutputError
 from monovo_cli.version import __version__
-
-if TYPE_CHECKING:
-    from monovo_cli.core.options import TrackOptions
 
 FRAMES_SUBDIR = "frames"  # as monovo_cli.io.frames (not imported here: it loads OpenCV)
 INIT_FILE = "init.yaml"
@@ -33,12 +31,6 @@ DONE_FORMAT = 2  # 2: options as dataclasses.asdict(JobOptions), every tracking 
 log = logging.getLogger(__name__)
 
 
-def _default_track_options() -> TrackOptions:
-    from monovo_cli.core.options import TrackOptions  # loads OpenCV: not at import time
-
-    return TrackOptions()
-
-
 @dataclass(frozen=True)
 class JobOptions:
     """The options of :func:`track_one`: ``track``, the tracking options (the only place
@@ -46,18 +38,20 @@ class JobOptions:
     PNG for every sequence (an absolute path); ``prior``, a motion CSV's path relative to
     each sequence folder; ``covariance``, a CSV's path relative to each output folder;
     ``skip_bad_frames``, as ``monovo track --skip-bad-frames``; ``topic``, the image topic
-    of the sequences that are ROS bags.
+    of the sequences that are ROS bags; ``smooth``, the trajectory re-scaled in hindsight
+    (as ``smooth`` of :func:`~monovo_cli.pipeline.track.track_sequence`).
 
-    Travels as ``dataclasses.asdict(JobOptions(...))``, a JSON-able dict, and is written so
-    into ``done.json``; :func:`normalize_options` completes and checks such a dict.
+    Travels to the workers as it is (a frozen dataclass pickles); ``done.json`` records it
+    as ``dataclasses.asdict``, a JSON-able dict, which :func:`is_complete` compares.
     """
 
-    track: TrackOptions = field(default_factory=_default_track_options)
+    track: TrackOptions = field(default_factory=TrackOptions)
     mask: str | None = None
     prior: str | None = None
     covariance: str | None = None
     skip_bad_frames: bool = False
     topic: str | None = None
+    smooth: bool = True
 
 
 # --------------------------------------------------------------------------- discovery
@@ -163,30 +157,16 @@ def sequence_name(rel: Path) -> str:
 # --------------------------------------------------------------------------- one sequence
 
 
-def job_options(options: Mapping[str, Any] | JobOptions | None) -> JobOptions:
-    """:class:`JobOptions` from ``options``: a dict of some of its fields (``track`` a
-    :class:`~monovo_cli.core.odometry.TrackOptions` or a dict of some of its fields, e.g.
-    ``{"track": {"estimator": {"robust": "tukey"}}}``; paths may be ``Path``), or None for
-    the defaults.
+def _job_options(options: JobOptions | None) -> JobOptions:
+    """``options``, or the defaults for None.
 
-    Raises ValueError for a key that is not an option (a programming error, not bad input).
+    Raises TypeError for anything else (a programming error, not bad input).
     """
-    if isinstance(options, JobOptions):
-        return options
-    from monovo_cli.core.options import options_from_dict
-
-    options = dict(options or {})
-    for key in ("mask", "prior", "covariance"):
-        if options.get(key) is not None:
-            options[key] = str(options[key])
-    return options_from_dict(JobOptions, options)
-
-
-def normalize_options(options: Mapping[str, Any] | JobOptions | None) -> dict[str, Any]:
-    """``options`` (see :func:`job_options`) completed with the defaults, as the JSON-able
-    dict ``dataclasses.asdict`` makes of :class:`JobOptions`: what ``done.json`` records and
-    :func:`is_complete` compares."""
-    return asdict(job_options(options))
+    if options is None:
+        return JobOptions()
+    if not isinstance(options, JobOptions):
+        raise TypeError(f"options: expected JobOptions or None, got {type(options).__name__}")
+    return options
 
 
 def limit_threads() -> None:
@@ -238,17 +218,16 @@ def _result(seq_dir: Path, out_dir: Path, **fields: Any) -> dict[str, Any]:
     return base
 
 
-def track_one(seq_dir: str | Path, out_dir: str | Path, options: dict[str, Any] | None = None, *,
+def track_one(seq_dir: str | Path, out_dir: str | Path, options: JobOptions | None = None, *,
               overwrite: bool = False, single_thread: bool = True) -> dict[str, Any]:
     """Track one sequence into ``out_dir`` as ``monovo track SEQ -o OUT`` does; never raises
     for a bad sequence.
 
     ``seq_dir``: a sequence folder (``frames/`` and ``init.yaml``), a directory of frames
     with ``init.yaml`` beside them, or a video or ROS bag with ``init.yaml`` beside it.
-    ``options``: :class:`JobOptions` or a dict of some of its fields (see
-    :func:`job_options`; unknown keys raise ValueError). ``overwrite``: replace results
-    already in ``out_dir`` (else such a folder is an error). ``single_thread``: run OpenCV on
-    one thread (see :func:`limit_threads`).
+    ``options``: :class:`JobOptions` (None: the defaults; anything else raises TypeError).
+    ``overwrite``: replace results already in ``out_dir`` (else such a folder is an error).
+    ``single_thread``: run OpenCV on one thread (see :func:`limit_threads`).
 
     Writes motion.csv, trajectory.csv, trajectory.tum and trajectory.png, then, last,
     ``done.json`` (what :func:`is_complete` checks). Returns a JSON-able dict: ``status``
@@ -258,7 +237,7 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: dict[str, Any] 
     else; ``traceback`` holds the details). KeyboardInterrupt and other BaseExceptions
     propagate.
     """
-    job = job_options(options)
+    job = _job_options(options)
     seq_dir, out_dir = Path(seq_dir), Path(out_dir)
     t0 = time.perf_counter()
     try:
@@ -273,11 +252,12 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: dict[str, Any] 
                                   "overwrite (--overwrite / --resume) or another output folder")
             done.unlink()
         run = track_sequence(
-            seq_dir, None, out_dir, job.track, overwrite=overwrite, smooth=job.track.smooth,
+            seq_dir, None, out_dir, job.track, overwrite=overwrite,
             skip_bad_frames=job.skip_bad_frames,
             mask=Path(job.mask) if job.mask else None,
             prior=_folder(seq_dir) / job.prior if job.prior else None,
-            covariance=out_dir / job.covariance if job.covariance else None, topic=job.topic)
+            covariance=out_dir / job.covariance if job.covariance else None, topic=job.topic,
+            smooth=job.smooth)
         n_frames, fingerprint = _input_fingerprint(seq_dir, job.prior, job.topic)
         if run.frames != n_frames:
             raise RuntimeError(f"{seq_dir}: {run.frames} frames tracked, expected {n_frames}")
@@ -308,11 +288,11 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: dict[str, Any] 
 
 
 def is_complete(seq_dir: str | Path, out_dir: str | Path,
-                options: dict[str, Any] | None = None) -> tuple[bool, str]:
+                options: JobOptions | None = None) -> tuple[bool, str]:
     """Whether ``out_dir`` holds the finished results of ``seq_dir`` tracked with ``options``.
 
     Complete means: ``done.json`` (written by :func:`track_one` after every other output)
-    is there and readable; it was written for the same options (:func:`normalize_options`)
+    is there and readable; it was written for the same options (:class:`JobOptions`)
     and the same inputs (number of frames, frame names and sizes, init.yaml, times.txt and
     the prior); and every file it lists is there with the size and SHA-256 it recorded --
     motion.csv with one row per frame >= 1, trajectory.csv and .tum with one per frame, as
@@ -320,7 +300,7 @@ def is_complete(seq_dir: str | Path, out_dir: str | Path,
     saying what is missing or different.
     """
     seq_dir, out_dir = Path(seq_dir), Path(out_dir)
-    job = job_options(options)
+    job = _job_options(options)
     done = out_dir / DONE_FILE
     if not done.is_file():
         return False, f"no {DONE_FILE}"

@@ -164,7 +164,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
             "track", options, {"sequence": Path(seq), "params": cfg.path,
                                "topic": topic, "model": model, "mask": mask, "prior": prior,
                                "covariance": covariance, "groundtruth": groundtruth,
-                               "skip_bad_frames": skip_bad_frames, "overwrite": overwrite},
+                               "skip_bad_frames": skip_bad_frames, "overwrite": overwrite,
+                               "smooth": smooth},
             frames, cfg.path, {"model": model, "mask": mask, "prior": prior,
                                "groundtruth": groundtruth}))
         stream = open(Path(out_dir) / "motion.csv", "w", newline="")

@@ -52,28 +52,14 @@ import numpy as np
 from monovo_cli.core.estimator.ground import LevelPoints
 from monovo_cli.core.estimator.jacobian import distortion_jacobian, observation_matrix, project_in_front
 from monovo_cli.core.estimator.robust import inlier_fraction, mad_scale, rho_sum, robust_weights
+from monovo_cli.core.options import EstimatorOptions
 from monovo_cli.geometry.lie import se3_exp
 from monovo_cli.image.sampling import INTERPOLATION, pixel_grid, sample_at
 
-
-@dataclass(frozen=True)
-class EstimatorOptions:
-    """Gauss-Newton settings. ``min_msd_decrease`` is the paper's delta_2 (relative)."""
-
-    max_iterations: int = 30
-    min_msd_decrease: float = 1e-6
-    step_tolerance_px: float = 3e-3
-    robust: str = "huber"            # "huber", "tukey" or "none"
-    huber_k: float = 1.345
-    tukey_c: float = 4.685
-    photometric: bool = True
-    min_valid_points: int = 20
-    interpolation: str = "cubic"     # at the finest level: OpenCV's "cubic" (Keys), "linear"
-    #                                  or "lanczos4" (image.sampling.INTERPOLATION)
-
-
 PLANAR_TOLERANCE = 1e-7  # |m . X - 1| of points lifted onto one plane (rounding only)
 REWEIGHT_PX = 0.5  # a step that moved the points further than this gets a fresh O^T W O
+
+
 @dataclass(frozen=True)
 class KeyLevel:
     """A keyframe's points at one level with their constant observation matrix.

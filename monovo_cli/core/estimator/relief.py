@@ -33,9 +33,10 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from monovo_cli.core.estimator.estimate import Estimate, EstimatorOptions, KeyLevel, estimate_motion
+from monovo_cli.core.estimator.estimate import Estimate, KeyLevel, estimate_motion
 from monovo_cli.core.estimator.jacobian import distortion_jacobian, observation_rows, project_in_front
 from monovo_cli.core.estimator.robust import mad_scale, robust_weights
+from monovo_cli.core.options import EstimatorOptions
 from monovo_cli.geometry.lie import se3_exp
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.image.gradients import sobel_gradient

@@ -20,10 +20,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monovo_cli.core.estimator.estimate import EstimatorOptions
 from monovo_cli.core.estimator.ground import LevelPoints
 from monovo_cli.core.estimator.jacobian import distortion_jacobian, observation_rows, project_in_front
 from monovo_cli.core.estimator.robust import robust_weights
+from monovo_cli.core.options import EstimatorOptions
 from monovo_cli.core.plane.belief import PlaneBelief
 from monovo_cli.geometry.lie import se3_exp
 from monovo_cli.geometry.plane import Plane, tangent_basis

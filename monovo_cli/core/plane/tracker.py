@@ -17,9 +17,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from monovo_cli.core.estimator.estimate import Estimate, EstimatorOptions, estimate_motion
+from monovo_cli.core.estimator.estimate import Estimate, estimate_motion
 from monovo_cli.core.keyframe import Keyframe, build_keyframe
-from monovo_cli.core.options import TrackOptions
+from monovo_cli.core.options import EstimatorOptions, TrackOptions
 from monovo_cli.core.plane.belief import (
     CONFIRMED_DEG,
     CONSISTENT_CHI2,

@@ -26,7 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monovo_cli.core.recovery.features import CHEAP, FeatureMotion, FeatureOptions, feature_motion
+from monovo_cli.core.options import FeatureOptions
+from monovo_cli.core.recovery.features import FeatureMotion, feature_motion
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import orthonormalize, se3_inv
 from monovo_cli.geometry.plane import Plane
@@ -82,13 +83,13 @@ class Bridge:
 
 
 def bridge(ref: Reference, image: np.ndarray, camera: PinholeCamera, key_plane: Plane, *,
-           mask: np.ndarray | None = None, region: tuple[int, int, int, int] | None = None,
-           options: FeatureOptions = CHEAP) -> Bridge | None:
+           options: FeatureOptions, mask: np.ndarray | None = None,
+           region: tuple[int, int, int, int] | None = None) -> Bridge | None:
     """The feature hypothesis of ``image`` (H, W) against ``ref``, chained to the keyframe.
 
-    ``key_plane`` is the ground in the keyframe camera; ``mask``/``region`` as for
-    :func:`~monovo_cli.core.recovery.features.feature_motion`. None when the features give no
-    hypothesis.
+    ``key_plane`` is the ground in the keyframe camera; ``options``, ``mask`` and ``region``
+    as for :func:`~monovo_cli.core.recovery.features.feature_motion`. None when the features
+    give no hypothesis.
     """
     ref_plane = key_plane.in_frame(ref.from_key)
     motion = feature_motion(ref.image, image, camera, ref_plane, mask=mask, region=region,
@@ -103,13 +104,14 @@ def bridge(ref: Reference, image: np.ndarray, camera: PinholeCamera, key_plane: 
 class Bridging:
     """The tracker's side: the reference frame, and the hypothesis of the frame at hand.
 
-    ``camera`` the frames' camera; ``mask`` (H, W, non-zero = usable) and ``region``
-    (``[x0, y0, x1, y1]`` px) as for :func:`bridge`.
+    ``camera`` the frames' camera; ``options`` the feature settings (``TrackOptions.features``),
+    ``mask`` (H, W, non-zero = usable) and ``region`` (``[x0, y0, x1, y1]`` px) as for
+    :func:`bridge`.
     """
 
-    def __init__(self, camera: PinholeCamera, *, mask: np.ndarray | None = None,
-                 region: tuple[int, int, int, int] | None = None,
-                 options: FeatureOptions = CHEAP) -> None:
+    def __init__(self, camera: PinholeCamera, *, options: FeatureOptions,
+                 mask: np.ndarray | None = None,
+                 region: tuple[int, int, int, int] | None = None) -> None:
         self.camera, self.mask, self.region, self.options = camera, mask, region, options
         self.reference: Reference | None = None
         self.current: tuple[int, Bridge] | None = None  # (frame index, its hypothesis)
@@ -122,8 +124,8 @@ class Bridging:
         """``cur_from_key`` (4x4) of frame ``index`` (``image`` (H, W)) by the features
         against the reference, ``key_plane`` the keyframe's plane; None without one."""
         b = None if self.reference is None else bridge(
-            self.reference, image, self.camera, key_plane, mask=self.mask, region=self.region,
-            options=self.options)
+            self.reference, image, self.camera, key_plane, options=self.options, mask=self.mask,
+            region=self.region)
         self.current = None if b is None else (index, b)
         return None if b is None else b.cur_from_key
 

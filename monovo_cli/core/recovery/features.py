@@ -53,59 +53,13 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from monovo_cli.core.options import FeatureOptions
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import make_pose
 from monovo_cli.geometry.plane import Plane, tangent_basis
 
 MASK_GRID_PX = 8  # the plane-visibility mask is evaluated on this grid and interpolated
 CUR_DEPRESSION_DEG = -5.0  # current-frame features: up to 5 deg above the keyframe's horizon
-
-
-@dataclass(frozen=True)
-class FeatureOptions:
-    """Settings of :func:`feature_motion`.
-
-    ``level``: detect on pyramid level ``level`` (``cv2.pyrDown``, each halves the image; 0 is
-    full resolution), or with None on the coarsest level whose shorter side keeps at least
-    ``detect_side`` px (:meth:`level_for`: the cost stays about the same at any frame size);
-    ``features``: ORB's cap per image; ``fast_threshold``: ORB's FAST
-    threshold (grey levels); ``ratio``: Lowe's ratio test on the two nearest Hamming
-    neighbours (0: cross-check instead); ``ransac_px``: RANSAC inlier threshold in
-    full-resolution pixels, scaled by ``2**level``; ``min_inliers`` / ``min_inlier_ratio``:
-    below these the hypothesis is None; ``min_plane_consistency``: the ratio of the two
-    tangent singular values (module docstring, step 3) below which the matched surface is
-    not taken for the plane; ``min_depression_deg``: keyframe pixels whose rays dip less
-    than this below the plane's horizon are not used; ``refine``: the 6-parameter
-    Levenberg-Marquardt on the inliers after the homography; ``seed``: OpenCV's RNG seed.
-    """
-
-    level: int | None = 0
-    detect_side: int = 256
-    features: int = 2000
-    fast_threshold: int = 10
-    ratio: float = 0.8
-    ransac_px: float = 3.0
-    ransac_iterations: int = 2000
-    min_inliers: int = 15
-    min_inlier_ratio: float = 0.15
-    min_plane_consistency: float = 0.5
-    min_depression_deg: float = 1.0
-    refine: bool = True
-    seed: int = 0
-
-    def level_for(self, camera: PinholeCamera) -> int:
-        """The pyramid level features are detected on for frames of ``camera``."""
-        if self.level is not None:
-            return int(self.level)
-        level, side = 0, min(camera.width, camera.height)
-        while side // 2 >= self.detect_side:
-            level, side = level + 1, side // 2
-        return level
-
-
-# The cheap setting: at most ~256 px on the shorter side, half the features
-# (benchmarks/real.py measures both).
-CHEAP = FeatureOptions(level=None, features=1000)
 
 
 @dataclass(frozen=True)
