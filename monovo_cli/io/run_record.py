@@ -29,27 +29,11 @@ import yaml
 
 from monovo_cli import __version__
 from monovo_cli.io.atomic import atomic_write_text
+from monovo_cli.io.digest import file_fingerprint, sha256_file
 from monovo_cli.io.frames import FrameSequence
 
 RUN_FILE = "run.yaml"
 FORMAT = "monovo-run-1"
-
-
-def sha256_file(path: Path) -> str:
-    """SHA-256 (hex) of the file ``path``, read in 1 MiB chunks."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
-def file_fingerprint(path: Path | None) -> dict[str, Any] | None:
-    """``{path, bytes, sha256}`` of a file (absolute path), None for no file."""
-    if path is None:
-        return None
-    path = Path(path)
-    return {"path": str(path.resolve()), "bytes": path.stat().st_size, "sha256": sha256_file(path)}
 
 
 def frames_fingerprint(frames: FrameSequence) -> dict[str, Any]:

@@ -199,7 +199,7 @@ def limit_threads() -> None:
 
 
 def _sha256(path: Path) -> str:
-    from monovo_cli.io.run_record import sha256_file  # (yaml: not at a worker's start)
+    from monovo_cli.io.digest import sha256_file
 
     return sha256_file(path)
 
