@@ -16,12 +16,11 @@ from monovo_cli.io.frames import (
     IMAGE_EXTENSIONS,
     Frame,
     FrameSequence,
-    decode_gray,
     find_init_yaml,
     natural_key,
-    read_gray,
     resolve_sequence,
 )
+from monovo_cli.io.grey import decode_gray, read_gray
 
 RNG = np.random.default_rng(1234)
 GREY = RNG.integers(0, 256, (24, 32), dtype=np.uint8)                  # reference grey image

@@ -23,7 +23,6 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from monovo_cli.errors import InputError
@@ -35,16 +34,14 @@ from monovo_cli.io.containers import (
     is_bag,
     list_containers,
 )
-from monovo_cli.io.grey import grey_from_float
+from monovo_cli.io.grey import decode_gray, grey_from_pixels, read_gray
 from monovo_cli.io.pds import PDS_EXTENSIONS, label_times, list_products
-from monovo_cli.io.quiet import quiet_native_stderr
 
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".pgm", ".bmp")
 TIMES_FILE = "times.txt"
 FRAMES_SUBDIR = "frames"
 INIT_FILE = "init.yaml"
 
-_CANNOT_DECODE = "cannot decode image (empty, truncated or not an image)"
 _DIGITS = re.compile(r"([0-9]+)")
 
 
@@ -120,60 +117,6 @@ def find_init_yaml(seq: Path) -> Path | None:
         if c.is_file():
             return c
     return None
-
-
-def _to_gray(img: np.ndarray, path: Path) -> np.ndarray:
-    """float32 grey on a 0..255 scale from whatever cv2.IMREAD_UNCHANGED returned."""
-    if img.ndim == 3 and img.shape[2] == 1:
-        img = img[:, :, 0]
-    if img.ndim not in (2, 3) or (img.ndim == 3 and img.shape[2] not in (2, 3, 4)):
-        raise InputError(f"{path}: unsupported image layout {img.shape} "
-                         "(use grey, grey+alpha, colour or colour+alpha images)")
-    if img.dtype == np.uint8:
-        f = img.astype(np.float32)
-    elif img.dtype == np.uint16:
-        f = img.astype(np.float32) * np.float32(255.0 / 65535.0)
-    elif img.dtype in (np.float32, np.float64):
-        f = grey_from_float(img, path, "float image", "or use 8/16-bit images")
-    else:
-        raise InputError(f"{path}: unsupported pixel type {img.dtype} "
-                         "(use 8- or 16-bit unsigned, or float, images)")
-    if f.ndim == 3:
-        channels = f.shape[2]
-        if channels == 2:  # grey + alpha
-            f = f[:, :, 0]
-        else:  # usual luma weights 0.299 R + 0.587 G + 0.114 B, alpha ignored
-            code = cv2.COLOR_BGR2GRAY if channels == 3 else cv2.COLOR_BGRA2GRAY
-            f = cv2.cvtColor(np.ascontiguousarray(f), code)
-    return np.ascontiguousarray(f, dtype=np.float32)
-
-
-def decode_gray(data: bytes | np.ndarray, path: Path) -> np.ndarray:
-    """Decode encoded image bytes (any format cv2 reads) to float32 grey; ``path`` names
-    the source in errors."""
-    buf = np.frombuffer(data, dtype=np.uint8) if isinstance(data, (bytes, bytearray)) else data
-    if buf.size == 0:
-        raise InputError(f"{path}: {_CANNOT_DECODE}")
-    with quiet_native_stderr():
-        try:
-            img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED)
-        except (cv2.error, MemoryError, ValueError, OverflowError):
-            img = None
-    if img is None or img.size == 0:
-        raise InputError(f"{path}: {_CANNOT_DECODE}")
-    return _to_gray(img, path)
-
-
-def read_gray(path: Path) -> np.ndarray:
-    """Read one image file as a (H, W) float32 grey image on a 0..255 scale
-    (16-bit scaled by 255/65535, float 0..1 by 255). Works with non-ASCII paths."""
-    path = Path(path)
-    try:
-        data = np.fromfile(path, dtype=np.uint8)
-    except (OSError, ValueError) as exc:
-        reason = getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
-        raise InputError(f"{path}: cannot read image ({reason})") from None
-    return decode_gray(data, path)
 
 
 def _read_times(path: Path, n_frames: int) -> np.ndarray:
@@ -292,7 +235,7 @@ class FrameSequence:
         raw = self._container.read(index)
         if isinstance(raw, (bytes, bytearray)):
             return decode_gray(raw, path)
-        return _to_gray(raw, path)
+        return grey_from_pixels(raw, path)
 
     def _first_size(self) -> tuple[int, int]:
         if self._size is None:

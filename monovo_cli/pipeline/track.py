@@ -346,7 +346,7 @@ def _read_frames(frames: FrameSequence, skip_bad_frames: bool,
 
 def _read_mask(path: Path, cfg: InitConfig) -> np.ndarray:
     """--mask PNG -> (H, W) bool of usable pixels (the PNG's non-zero pixels are excluded)."""
-    from monovo_cli.io.frames import read_gray
+    from monovo_cli.io.grey import read_gray
 
     img = read_gray(path)
     if img.shape != (cfg.camera.height, cfg.camera.width):
