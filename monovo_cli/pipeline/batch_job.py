@@ -23,7 +23,7 @@ from monovo_cli.errors import InputError, MonovoError, OutputError
 if TYPE_CHECKING:
     from monovo_cli.core.options import TrackOptions
 
-FRAMES_SUBDIR = "frames"  # as monovo_cli.io.frames (not imported here: it loads OpenCV)
+FRAMES_SUBDIR = "frames"  # as monovo_cli.io.sources (not imported here: it loads OpenCV)
 INIT_FILE = "init.yaml"
 DONE_FILE = "done.json"
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
@@ -64,7 +64,7 @@ class JobOptions:
 
 
 def _natural_parts(rel: Path) -> tuple:
-    from monovo_cli.io.frames import natural_key
+    from monovo_cli.io.sources import natural_key
 
     return tuple(natural_key(p) for p in rel.parts)
 
@@ -86,7 +86,7 @@ def is_sequence_folder(path: Path) -> bool:
 
 def _containers(path: Path) -> list[Path]:
     """The videos and ROS bags of a folder holding ``init.yaml`` but no ``frames/``."""
-    from monovo_cli.io.containers import list_containers
+    from monovo_cli.io.sources import list_containers
 
     return list_containers(path) if (path / INIT_FILE).is_file() else []
 
@@ -122,7 +122,7 @@ def find_sequences(root: Path, *, pattern: str | None = None,
             matches = list(root.glob(pattern))
         except (ValueError, NotImplementedError) as exc:
             raise InputError(f"--glob {pattern!r}: not a usable pattern ({exc})") from None
-        from monovo_cli.io.containers import is_container
+        from monovo_cli.io.sources import is_container
 
         for m in matches:
             real = os.path.realpath(m)
@@ -216,9 +216,9 @@ def _input_fingerprint(seq_dir: Path, prior: str | None,
     Frames are compared by name and size, not content: hashing an archive's images on every
     resume would cost as much as reading them for tracking.
     """
-    from monovo_cli.io.frames import FrameSequence, find_init_yaml
+    from monovo_cli.io.sources import find_init_yaml, open_frames
 
-    frames = FrameSequence(seq_dir, topic=topic)
+    frames = open_frames(seq_dir, topic=topic)
     h = hashlib.sha256()
     for p in frames.paths:
         h.update(f"{p.name}\0{p.stat().st_size}\n".encode())

@@ -35,7 +35,7 @@ from monovo_cli.errors import InputError, OutputError, TrackingError
 from monovo_cli.io.atomic import atomic_write_text
 from monovo_cli.io.config import InitConfig, check_frame_size, load_init
 from monovo_cli.io.formats import CovarianceWriter, MotionRow, MotionWriter, trajectory_csv_text, tum_text
-from monovo_cli.io.frames import FrameSequence, find_init_yaml, resolve_sequence
+from monovo_cli.io.sources import FrameSource, find_init_yaml, open_frames, resolve_sequence
 from monovo_cli.io.model import save_model
 from monovo_cli.io.run_record import run_record, write_run_record
 from monovo_cli.pipeline.preflight import (
@@ -74,11 +74,11 @@ class TrackSummary:
 
 
 def open_sequence(seq: Path, params: Path | None, *,
-                  topic: str | None = None) -> tuple[FrameSequence, InitConfig]:
+                  topic: str | None = None) -> tuple[FrameSource, InitConfig]:
     """The frames of ``seq`` and its init.yaml (``params``, or found beside the frames);
     ``topic`` the image topic of a ROS bag."""
     seq_dir = resolve_sequence(Path(seq))
-    frames = FrameSequence(seq_dir, topic=topic)
+    frames = open_frames(seq_dir, topic=topic)
     if params is None:
         params = find_init_yaml(Path(seq))
         if params is None:
@@ -321,7 +321,7 @@ class _LastImage:
         return index, ts, image
 
 
-def _read_frames(frames: FrameSequence, skip_bad_frames: bool,
+def _read_frames(frames: FrameSource, skip_bad_frames: bool,
                  out_dir: Path | None) -> Iterator[tuple[int, float, np.ndarray | None]]:
     """``(index, timestamp, image)`` of every frame for :func:`~monovo_cli.core.odometry.track`.
 
