@@ -198,6 +198,8 @@ def test_bag_16_bit_big_endian_and_record_times(tmp_path):
     np.testing.assert_allclose(seq.timestamps, np.array(bag_ns) * 1e-9)
     for k in (2, 0, 1):
         np.testing.assert_allclose(seq.read(k).image, frames[k] * (255.0 / 65535.0), rtol=1e-6)
+    seq.close()  # reading again reopens the bag
+    np.testing.assert_allclose(seq.read(2).image, frames[2] * (255.0 / 65535.0), rtol=1e-6)
 
 
 def test_missing_rosbags_says_how_to_install(tmp_path, monkeypatch):

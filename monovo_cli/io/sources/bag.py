@@ -151,8 +151,9 @@ class RosBag(FrameSource):
 
     def _raw(self, index: int) -> np.ndarray | bytes:
         """Frame ``index``: an array in OpenCV layout, or the bytes of a compressed image."""
-        if self._reader is None:
+        if self._reader is None:  # closed: reopen, the topic's connections with it
             self._open_reader()
+            _, self._connections = self._pick(self.topic)
         if self._gen is None or index != self._next:
             # Seek: messages from the frame's record time on (earlier ones of the same ns skipped).
             first = self._bag_ns.index(self._bag_ns[index])
