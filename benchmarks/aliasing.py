@@ -50,7 +50,7 @@ from monovo_cli.core.options import TrackOptions
 from monovo_cli.geometry.lie import se3_exp, se3_inv
 from monovo_cli.image.sampling import sample_at
 from monovo_cli.io.config import load_init
-from monovo_cli.io.frames import FrameSequence
+from monovo_cli.io.sources import open_frames
 from monovo_cli.synth.render import SUPERSAMPLE, GroundRenderer, finish_frame
 from monovo_cli.synth.write import synthesize
 
@@ -173,7 +173,7 @@ def main() -> None:
         scenes = scenes[:n]
         stds = crb_stds(pairs_dir, VAR)[0][:n]
         box = BlurredRenderer(cam, tex, 0.0)
-        errs = np.array([track_frames(sc, [f.image for f in FrameSequence(sc.directory / "frames")])
+        errs = np.array([track_frames(sc, [f.image for f in open_frames(sc.directory / "frames")])
                          for sc in scenes])
         clean = np.array([track_frames(sc, [finish_frame(box.render(g), np.random.default_rng(0),
                                                          0.0).astype(np.float32)

@@ -35,7 +35,7 @@ from monovo_cli.core.odometry import estimate_frames  # noqa: E402
 from monovo_cli.core.options import TrackOptions  # noqa: E402
 from monovo_cli.io.config import load_init  # noqa: E402
 from monovo_cli.io.formats import read_motion_csv, read_tum  # noqa: E402
-from monovo_cli.io.frames import FrameSequence  # noqa: E402
+from monovo_cli.io.sources import open_frames  # noqa: E402
 from monovo_cli.pipeline.track import track_sequence  # noqa: E402
 from monovo_cli.synth.write import synthesize  # noqa: E402
 
@@ -103,7 +103,7 @@ def std_honesty(root: Path, n_pairs: int, seed: int) -> np.ndarray:
     z = []
     for pair in sorted((root / "pairs").glob("pair_*")):
         cfg = load_init(pair / "init.yaml")
-        fr = FrameSequence(pair / "frames")
+        fr = open_frames(pair / "frames")
         plane = cfg.plane
         res = list(estimate_frames(((f.index, f.timestamp, f.image) for f in fr), cfg.camera, plane,
                          cfg.region, TrackOptions()))

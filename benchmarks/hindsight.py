@@ -36,7 +36,7 @@ from monovo_cli.core.run import KeyRecord
 from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_tum
-from monovo_cli.io.frames import FrameSequence
+from monovo_cli.io.sources import open_frames
 from monovo_cli.mapping.hindsight import segment_lifts, smoothed_distances, smoothed_poses
 from monovo_cli.synth.write import synthesize
 
@@ -59,7 +59,7 @@ def run_case(seq: Path, kind: str) -> dict:
     def on_keyframe(key) -> None:
         keys[key.index] = KeyRecord.of(key)
 
-    res = list(estimate_frames(((f.index, f.timestamp, f.image) for f in FrameSequence(seq / "frames")),
+    res = list(estimate_frames(((f.index, f.timestamp, f.image) for f in open_frames(seq / "frames")),
                      cfg.camera, cfg.plane, cfg.region, TrackOptions(), on_keyframe=on_keyframe,
                      sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg))
     index = [r.index for r in res]

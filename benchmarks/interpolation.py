@@ -32,7 +32,7 @@ from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.image.sampling import INTERPOLATION
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_motion_csv
-from monovo_cli.io.frames import FrameSequence
+from monovo_cli.io.sources import open_frames
 from monovo_cli.synth.write import synthesize
 
 
@@ -54,7 +54,7 @@ def main() -> None:
         synthesize(root, preset="pairs", frames=args.pairs, noise_var=0.0, seed=args.seed)
         for pair in sorted(p for p in root.iterdir() if p.name.startswith("pair_")):
             cfg = load_init(pair / "init.yaml")
-            frames = [f.image for f in FrameSequence(pair / "frames")]
+            frames = [f.image for f in open_frames(pair / "frames")]
             plane = cfg.plane
             _, gt, _ = read_motion_csv(pair / "groundtruth_motion.csv")
             cur_from_key = se3_inv(gt[0])

@@ -40,7 +40,7 @@ from monovo_cli.core.odometry import estimate_frames
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_motion_csv
-from monovo_cli.io.frames import FrameSequence
+from monovo_cli.io.sources import open_frames
 from monovo_cli.synth.motion import PAIR_DISTANCE, PAIR_EXTRA_TILT_DEG, PAIR_MAX_TRANSLATION, PAIR_TILT_DEG
 from monovo_cli.synth.render import default_camera
 from monovo_cli.synth.write import synthesize
@@ -66,7 +66,7 @@ def track_pairs(root: Path, options: TrackOptions):
     reason), wall and CPU seconds per pair (n,) (n,) (tracking incl. the frame-0 model)."""
     errs, results, secs, cpu = [], [], [], []
     for pair in sorted(p for p in root.iterdir() if p.name.startswith("pair_")):
-        frames = FrameSequence(pair / "frames")
+        frames = open_frames(pair / "frames")
         cfg = load_init(pair / "init.yaml")
         imgs = [(f.index, f.timestamp, f.image) for f in frames]
         plane = cfg.plane

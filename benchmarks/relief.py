@@ -42,7 +42,7 @@ from monovo_cli.geometry.plane import Plane
 from monovo_cli.image.pyramid import build_pyramid
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_tum
-from monovo_cli.io.frames import FrameSequence
+from monovo_cli.io.sources import open_frames
 from monovo_cli.synth.terrain import TERRAINS, load_terrain
 from monovo_cli.synth.write import synthesize
 
@@ -106,7 +106,7 @@ def tracked(seq: Path, frames: int, options: TrackOptions, points: str | None) -
         return replace(key, levels=tuple(levels))
 
     cfg = load_init(seq / "init.yaml")
-    fs = FrameSequence(seq / "frames")
+    fs = open_frames(seq / "frames")
     images = [fs.read(k) for k in range(min(len(fs), frames))]
     if points:
         odometry.build_keyframe = plane_tracker.build_keyframe = oracle
@@ -154,7 +154,7 @@ def pair_section(renders: Path, frames: int, k: int = 100, j: int = 112) -> None
     for kind in TERRAINS:
         seq = drive(renders, kind, frames)
         cfg = load_init(seq / "init.yaml")
-        fs = FrameSequence(seq / "frames")
+        fs = open_frames(seq / "frames")
         g = np.load(seq / "terrain.npz")["g_from_cam"]
         img_k, img_j = fs.read(k).image, fs.read(j).image
         key0 = build_keyframe(k, img_k, cfg.camera, cfg.plane, cfg.region, np.eye(4), TrackOptions())

@@ -48,7 +48,7 @@ from monovo_cli.core.odometry import estimate_frames
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_tum
-from monovo_cli.io.frames import FrameSequence
+from monovo_cli.io.sources import open_frames
 from monovo_cli.pipeline.track import track_sequence
 from monovo_cli.synth.write import synthesize
 
@@ -88,7 +88,7 @@ def end_to_end(seq: Path, out: Path) -> dict:
 
 def estimator_only(seq: Path) -> tuple[float, float]:
     """Frames/s (wall, CPU) of ``odometry.track`` over frames decoded beforehand."""
-    frames = FrameSequence(seq)
+    frames = open_frames(seq)
     cfg = load_init(seq / "init.yaml")
     imgs = [(f.index, f.timestamp, f.image) for f in frames]
     plane = cfg.plane

@@ -145,6 +145,24 @@ def test_resume_redoes_only_the_incomplete(archive, local_out, tmp_path):
     assert is_complete(archive / "s4", out / "s4", tukey) == (False, "tracked with other options")
 
 
+def test_resume_compares_the_frames_fingerprint(archive, local_out, tmp_path):
+    """A sequence moved with its files' times is still complete; a frame rewritten under
+    its name and size, or a new times.txt, makes it incomplete."""
+    seq = tmp_path / "moved" / "s4"
+    shutil.copytree(archive / "s4", seq)  # keeps the modification times
+    out = local_out / "s4"
+    assert is_complete(seq, out) == (True, "complete")
+    changed = (False, "the sequence's frames, init.yaml, times.txt or prior changed")
+    last = sorted((seq / "frames").glob("*.png"))[-1]
+    st = last.stat()
+    os.utime(last, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    assert is_complete(seq, out) == changed
+    os.utime(last, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert is_complete(seq, out) == (True, "complete")
+    (seq / "times.txt").write_text("".join(f"{0.1 * k:.1f}\n" for k in range(8)))
+    assert is_complete(seq, out) == changed
+
+
 def test_dask_local_cluster_gives_identical_outputs(archive, local_out, tmp_path):
     distributed = pytest.importorskip("distributed")
     out = tmp_path / "dask"

@@ -18,7 +18,7 @@ from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.image.pyramid import build_pyramid
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_motion_csv, read_tum
-from monovo_cli.io.frames import FrameSequence
+from monovo_cli.io.sources import open_frames
 from monovo_cli.synth.write import synthesize
 
 
@@ -31,7 +31,7 @@ def drive(tmp_path_factory):
 
 def _track(seq, images=None, options=None, priors=None):
     cfg = load_init(seq / "init.yaml")
-    fr = FrameSequence(seq / "frames")
+    fr = open_frames(seq / "frames")
     imgs = images if images is not None else [f.image for f in fr]
     plane = cfg.plane
     return list(estimate_frames(((k, float(k), im) for k, im in enumerate(imgs)), cfg.camera, plane,
@@ -43,7 +43,7 @@ def _pos_err(res, gt):
 
 
 def test_faults_are_flagged_and_tracking_resumes(drive):
-    fr = FrameSequence(drive / "frames")
+    fr = open_frames(drive / "frames")
     imgs = [f.image for f in fr]
     imgs[12] = np.zeros_like(imgs[12])                          # blank
     imgs[20] = imgs[19].copy()                                  # duplicate
@@ -68,7 +68,7 @@ def test_a_lost_frame_sends_the_tracker_recovering_until_it_re_anchors(drive):
     """The state machine: starting -> tracking; a lost frame -> recovering (its next guess
     from the rotation search); the next good frame anchors a new keyframe -> tracking."""
     cfg = load_init(drive / "init.yaml")
-    imgs = [f.image for f in FrameSequence(drive / "frames")][:6]
+    imgs = [f.image for f in open_frames(drive / "frames")][:6]
     imgs[3] = np.zeros_like(imgs[3])
     odo = Odometry(cfg.camera, cfg.plane, cfg.region)
     assert odo.state is OdometryState.STARTING
@@ -84,7 +84,7 @@ def test_a_lost_frame_sends_the_tracker_recovering_until_it_re_anchors(drive):
 
 def test_brightness_model_recovers_gain_and_bias(drive):
     cfg = load_init(drive / "init.yaml")
-    fr = FrameSequence(drive / "frames")
+    fr = open_frames(drive / "frames")
     i0, i1 = fr.read(0).image, fr.read(1).image
     plane = cfg.plane
     corners = rectangle_corners(cfg.camera, plane, cfg.region)
@@ -158,7 +158,7 @@ def test_cli_mask_prior_covariance(drive, tmp_path):
 
 def test_masked_pixels_are_never_observation_points(drive):
     cfg = load_init(drive / "init.yaml")
-    img = FrameSequence(drive / "frames").read(0).image
+    img = open_frames(drive / "frames").read(0).image
     plane = cfg.plane
     corners = rectangle_corners(cfg.camera, plane, cfg.region)
     usable = np.ones_like(img, bool)
@@ -190,7 +190,7 @@ def test_a_fit_that_degrades_everywhere_re_anchors(drive):
     """A lens losing focus (every frame blurrier than the last) degrades the fit at all
     points: the keyframe is renewed when the robust msd doubles (measured: 7 re-anchors over
     40 frames, 3 without the rule)."""
-    imgs = [f.image for f in FrameSequence(drive / "frames")]
+    imgs = [f.image for f in open_frames(drive / "frames")]
     blurred = [im if k == 0 else cv2.GaussianBlur(im, (0, 0), 0.12 * k) for k, im in enumerate(imgs)]
     with_rule = _reanchors(_track(drive, blurred))
     without = _reanchors(_track(drive, blurred, TrackOptions(reanchor_msd_ratio=float("inf"))))

@@ -12,14 +12,13 @@ from hypothesis import event, given, settings
 from hypothesis import strategies as st
 
 from monovo_cli.errors import InputError
-from monovo_cli.io.frames import (
+from monovo_cli.io.grey import decode_gray, read_gray
+from monovo_cli.io.sources import (
     IMAGE_EXTENSIONS,
     Frame,
-    FrameSequence,
-    decode_gray,
     find_init_yaml,
     natural_key,
-    read_gray,
+    open_frames,
     resolve_sequence,
 )
 
@@ -65,7 +64,7 @@ def test_listing_natural_sort_and_other_files_ignored(tmp_path):
     (d / "frame9.png.bak").write_bytes(b"x")
     (d / ".frame0.png").write_bytes(b"AppleDouble junk")
     (d / "frame11.png").mkdir()  # a directory with an image-like name
-    seq = FrameSequence(d)
+    seq = open_frames(d)
     assert [p.name for p in seq.paths] == ["frame1.PNG", "frame2.png", "frame3.JPG", "frame4.tiff",
                                            "frame5.bmp", "frame6.pgm", "frame7.jpeg", "frame8.tif",
                                            "frame10.png"]
@@ -81,20 +80,20 @@ def test_image_extensions_constant():
 
 def test_missing_path(tmp_path):
     with pytest.raises(InputError, match=r"nowhere: no such directory"):
-        FrameSequence(tmp_path / "nowhere")
+        open_frames(tmp_path / "nowhere")
 
 
 def test_file_instead_of_directory(tmp_path):
     f = write(tmp_path / "a.png", GREY)
     with pytest.raises(InputError, match=r"a\.png: is a file, expected a directory of frames"):
-        FrameSequence(f)
+        open_frames(f)
 
 
 def test_no_images_lists_extensions(tmp_path):
     (tmp_path / "readme.txt").write_text("x")
     with pytest.raises(InputError, match=r"no image files \(accepted: \.png \.jpg \.jpeg \.tif \.tiff "
                                          r"\.pgm \.bmp"):
-        FrameSequence(tmp_path)
+        open_frames(tmp_path)
 
 
 def test_resolve_sequence_and_find_init(tmp_path):
@@ -103,7 +102,7 @@ def test_resolve_sequence_and_find_init(tmp_path):
     (root / "init.yaml").write_text("x: 1\n")
     assert resolve_sequence(root) == root / "frames"
     assert resolve_sequence(root / "frames") == root / "frames"
-    assert FrameSequence(root).dir == root / "frames"
+    assert open_frames(root).dir == root / "frames"
     assert find_init_yaml(root) == root / "init.yaml"
     assert find_init_yaml(root / "frames") == root / "init.yaml"
     other = tmp_path / "other"
@@ -122,7 +121,7 @@ def test_resolve_prefers_own_images(tmp_path):
 def test_non_ascii_paths(tmp_path):
     d = tmp_path / "séquence_日本"
     make_seq(d, 2, names=["imagé_0.png", "imagé_1.png"])
-    frames = list(FrameSequence(d))
+    frames = list(open_frames(d))
     assert [f.index for f in frames] == [0, 1]
     assert frames[1].image.shape == (24, 32)
 
@@ -133,7 +132,7 @@ def test_non_ascii_paths(tmp_path):
 def test_times_txt(tmp_path):
     make_seq(tmp_path, 3)
     (tmp_path / "times.txt").write_text("0.0\n0.1\n\n0.25\n")
-    seq = FrameSequence(tmp_path)
+    seq = open_frames(tmp_path)
     np.testing.assert_array_equal(seq.timestamps, [0.0, 0.1, 0.25])
     assert seq.times_path == tmp_path / "times.txt"
     assert [f.timestamp for f in seq] == [0.0, 0.1, 0.25]
@@ -153,14 +152,14 @@ def test_times_txt_errors(tmp_path, text, msg):
     make_seq(tmp_path, 3)
     (tmp_path / "times.txt").write_text(text)
     with pytest.raises(InputError, match=msg):
-        FrameSequence(tmp_path)
+        open_frames(tmp_path)
 
 
 def test_times_txt_not_text(tmp_path):
     make_seq(tmp_path, 1)
     (tmp_path / "times.txt").write_bytes(b"\xff\xfe\x00\x81")
     with pytest.raises(InputError, match=r"times\.txt: cannot read timestamps"):
-        FrameSequence(tmp_path)
+        open_frames(tmp_path)
 
 
 # ----------------------------------------------------------------------------- decoding
@@ -300,7 +299,7 @@ def test_stderr_still_works_after_decoding(tmp_path, capfd):
 def test_iteration_streams_frames_lazily(tmp_path):
     paths = make_seq(tmp_path, 4)
     paths[2].write_bytes(b"")  # corrupt, but listing does not decode
-    seq = FrameSequence(tmp_path)
+    seq = open_frames(tmp_path)
     it = iter(seq)
     assert isinstance(it, types.GeneratorType)
     f0 = next(it)
@@ -316,7 +315,7 @@ def test_iteration_streams_frames_lazily(tmp_path):
 
 def test_size_lazy_and_cached(tmp_path):
     paths = make_seq(tmp_path, 3)
-    seq = FrameSequence(tmp_path)
+    seq = open_frames(tmp_path)
     assert seq._size is None
     assert (seq.width, seq.height) == (32, 24)
     paths[0].unlink()  # size is cached: not read again
@@ -327,7 +326,7 @@ def test_size_lazy_and_cached(tmp_path):
 def test_mixed_sizes(tmp_path):
     make_seq(tmp_path, 2)
     write(tmp_path / "frame_000002.png", np.zeros((20, 30), np.uint8))
-    seq = FrameSequence(tmp_path)
+    seq = open_frames(tmp_path)
     frames = []
     with pytest.raises(InputError) as ei:
         for f in seq:
@@ -341,12 +340,12 @@ def test_mixed_sizes_read_out_of_order(tmp_path):
     make_seq(tmp_path, 2)
     write(tmp_path / "frame_000002.png", np.zeros((20, 30), np.uint8))
     with pytest.raises(InputError, match=r"frame is 30x20 but frame_000000\.png is 32x24"):
-        FrameSequence(tmp_path).read(2)
+        open_frames(tmp_path).read(2)
 
 
 def test_read_index_range(tmp_path):
     make_seq(tmp_path, 2)
-    seq = FrameSequence(tmp_path)
+    seq = open_frames(tmp_path)
     with pytest.raises(IndexError):
         seq.read(2)
     with pytest.raises(IndexError):

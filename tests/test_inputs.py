@@ -14,7 +14,7 @@ from product_writers import MASK_12, twelve_bit, utc, write_bag, write_pds3, wri
 from monovo_cli.cli import main
 from monovo_cli.errors import InputError
 from monovo_cli.io.formats import read_trajectory_csv
-from monovo_cli.io.frames import FrameSequence, resolve_sequence
+from monovo_cli.io.sources import RosBag, VideoFile, open_frames, resolve_sequence
 from monovo_cli.synth.write import synthesize
 
 N_FRAMES = 8
@@ -85,7 +85,7 @@ def test_pds3_12_bit_detached_labels_track_identically(drive, tmp_path):
     (seq / "frames").mkdir()
     for k, img in enumerate(frames):
         write_pds3(seq / "frames" / f"f{k}.IMG", twelve_bit(img), bit_mask=MASK_12, detached=True)
-    assert [p.suffix for p in FrameSequence(seq).paths] == [".LBL"] * N_FRAMES
+    assert [p.suffix for p in open_frames(seq).paths] == [".LBL"] * N_FRAMES
     out = _track(seq, tmp_path / "out")
     _same_motion(out, ref)  # 12-bit samples / 16 are the 8-bit frames exactly
     np.testing.assert_array_equal(_timestamps(out), np.arange(N_FRAMES))
@@ -130,8 +130,8 @@ def test_h264_video_ends_within_1_percent_of_the_path(drive, tmp_path):
 
 def test_video_frames_in_any_order(drive, tmp_path):
     _, frames, _ = drive
-    seq = FrameSequence(write_video(tmp_path / "d.mkv", frames, fps=FPS))
-    assert (seq.kind, len(seq), seq.width, seq.height) == ("video", N_FRAMES, 128, 128)
+    seq = open_frames(write_video(tmp_path / "d.mkv", frames, fps=FPS))
+    assert isinstance(seq, VideoFile) and (len(seq), seq.width, seq.height) == (N_FRAMES, 128, 128)
     for k in (5, 2, 7, 0, 1):  # backwards means decoding from the start again
         fr = seq.read(k)
         np.testing.assert_array_equal(fr.image, frames[k])
@@ -143,7 +143,7 @@ def test_a_file_ffmpeg_cannot_read_is_one_line(tmp_path):
     bad = tmp_path / "drive.mp4"
     bad.write_bytes(b"not a video at all" * 50)
     with pytest.raises(InputError, match=r"drive\.mp4: not a video ffmpeg can read \(.+\)"):
-        FrameSequence(bad)
+        open_frames(bad)
 
 
 # --------------------------------------------------------------------------- ROS bags
@@ -193,11 +193,13 @@ def test_bag_16_bit_big_endian_and_record_times(tmp_path):
     bag_ns = [5_000_000_000 + k * 50_000_000 for k in range(3)]
     write_bag(tmp_path / "b", frames, [0, 0, 0], ros=2, encoding="mono16", bigendian=True,
               bag_ns=bag_ns)
-    seq = FrameSequence(tmp_path / "b")
-    assert seq.kind == "bag" and seq._container.stamp_source == "bag"  # headers unset
+    seq = open_frames(tmp_path / "b")
+    assert isinstance(seq, RosBag) and seq.stamp_source == "bag"  # headers unset
     np.testing.assert_allclose(seq.timestamps, np.array(bag_ns) * 1e-9)
     for k in (2, 0, 1):
         np.testing.assert_allclose(seq.read(k).image, frames[k] * (255.0 / 65535.0), rtol=1e-6)
+    seq.close()  # reading again reopens the bag
+    np.testing.assert_allclose(seq.read(2).image, frames[2] * (255.0 / 65535.0), rtol=1e-6)
 
 
 def test_missing_rosbags_says_how_to_install(tmp_path, monkeypatch):
@@ -205,7 +207,7 @@ def test_missing_rosbags_says_how_to_install(tmp_path, monkeypatch):
     bag.write_bytes(b"#ROSBAG V2.0\n")
     monkeypatch.setitem(sys.modules, "rosbags.highlevel", None)
     with pytest.raises(InputError, match=r"needs the 'rosbags' package: pip install 'monovo\[ros\]'"):
-        FrameSequence(bag)
+        open_frames(bag)
 
 
 # --------------------------------------------------------------------------- batch

@@ -33,7 +33,7 @@ from monovo_cli.geometry.plane import Plane
 from monovo_cli.image.pyramid import build_pyramid
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_motion_csv
-from monovo_cli.io.frames import FrameSequence
+from monovo_cli.io.sources import open_frames
 from monovo_cli.synth.motion import camera_mount
 from monovo_cli.synth.render import (
     GroundRenderer,
@@ -197,7 +197,7 @@ def test_the_first_frames_on_rolling_ground_are_covered_before_any_re_anchor(tmp
     synthesize(seq, preset="drive", terrain="rolling", frames=30, size=(256, 256), noise_var=10.0,
                seed=seed)
     cfg = load_init(seq / "init.yaml")
-    res = list(estimate_frames(((f.index, f.timestamp, f.image) for f in FrameSequence(seq / "frames")),
+    res = list(estimate_frames(((f.index, f.timestamp, f.image) for f in open_frames(seq / "frames")),
                      cfg.camera, cfg.plane, cfg.region, TrackOptions(),
                      sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg))
     _, gt, _ = read_motion_csv(seq / "groundtruth_motion.csv")

@@ -215,9 +215,9 @@ def test_renderer_points_and_text(tracked):
     cfg, plane, region = _setup(seq)
     tri = triangle_on_ground(cfg.camera, plane, None, region)
     r = OverlayRenderer(cfg.camera, plane, tri, region=region, points=True)
-    from monovo_cli.io.frames import FrameSequence
+    from monovo_cli.io.sources import open_frames
 
-    img0 = FrameSequence(seq).read(0).image
+    img0 = open_frames(seq).read(0).image
     a = r.render(0, img0, np.eye(4), status="start", last=39)
     b = OverlayRenderer(cfg.camera, plane, tri, region=region).render(0, img0, np.eye(4))
     green = (a[:, :, 1].astype(int) - a[:, :, 2]) > 80
@@ -347,9 +347,9 @@ def test_a_new_triangle_at_each_keyframe_and_when_the_old_one_leaves_the_view(tr
 
 def _text_of(renderer, seq, pose):
     """The text line is drawn, not returned: render twice and compare the band."""
-    from monovo_cli.io.frames import FrameSequence
+    from monovo_cli.io.sources import open_frames
 
-    img = FrameSequence(seq).read(0).image
+    img = open_frames(seq).read(0).image
     a = renderer.render(1, img, pose)
     b = renderer.render(1, img, pose)  # "new triangle" only once
     return "new triangle" if not np.array_equal(a[:20], b[:20]) else ""

@@ -9,9 +9,9 @@ from product_writers import MASK_12, twelve_bit, utc, write_pds3, write_pds4
 
 from monovo_cli.errors import ConfigError, InputError
 from monovo_cli.io.config import load_init
-from monovo_cli.io.frames import FrameSequence
 from monovo_cli.io.pds import parse_time, read_product
 from monovo_cli.io.pds_camera import read_camera_model
+from monovo_cli.io.sources import PdsFolder, open_frames
 
 pytest.importorskip("pdr")
 
@@ -64,8 +64,8 @@ def test_pds3_detached_label_is_one_product(tmp_path):
     lbl = write_pds3(tmp_path / "b.IMG", img, detached=True, start_time="2004-015T10:20:31.25Z")
     assert lbl.name == "b.LBL"
     write_pds3(tmp_path / "a.IMG", _frame(5), start_time=utc(T0))
-    seq = FrameSequence(tmp_path)
-    assert seq.kind == "pds"
+    seq = open_frames(tmp_path)
+    assert isinstance(seq, PdsFolder)
     assert [p.name for p in seq.paths] == ["a.IMG", "b.LBL"]
     np.testing.assert_array_equal(seq.read(1).image, img)
     np.testing.assert_allclose(seq.timestamps, [T0, T0 + 1.0], atol=1e-6)
@@ -76,7 +76,7 @@ def test_pds4_label_and_data_file(tmp_path):
     write_pds4(tmp_path / "n1.xml", twelve_bit(img), bits=12, start_time="2021-02-22T21:38:15.433Z",
                data_name="N1_RAW.IMG")
     (tmp_path / "collection.xml").write_text("<Product_Collection/>")  # not an observation
-    seq = FrameSequence(tmp_path)
+    seq = open_frames(tmp_path)
     assert [p.name for p in seq.paths] == ["n1.xml"]  # its data file is not a second product
     fr = read_product(tmp_path / "n1.xml")
     # the Commanded_Parameters' 16 bits are what was asked for, the 12 what came
@@ -107,22 +107,22 @@ def test_label_times_must_increase_or_times_txt_overrides(tmp_path):
         write_pds3(tmp_path / f"f{k}.IMG", _frame(k), start_time=utc(t))
     with pytest.raises(InputError, match=r"f2\.IMG: label time .* does not follow f1\.IMG's .*; "
                                          r"give the timestamps in times\.txt"):
-        FrameSequence(tmp_path)
+        open_frames(tmp_path)
     (tmp_path / "times.txt").write_text("0.0\n0.5\n1.0\n")
-    np.testing.assert_array_equal(FrameSequence(tmp_path).timestamps, [0.0, 0.5, 1.0])
+    np.testing.assert_array_equal(open_frames(tmp_path).timestamps, [0.0, 0.5, 1.0])
 
 
 def test_some_labels_without_time(tmp_path):
     write_pds3(tmp_path / "f0.IMG", _frame(0), start_time=utc(T0))
     write_pds3(tmp_path / "f1.IMG", _frame(1))
     with pytest.raises(InputError, match=r"f1\.IMG: the label has no START_TIME"):
-        FrameSequence(tmp_path)
+        open_frames(tmp_path)
 
 
 def test_labels_without_time_count_frames(tmp_path):
     for k in range(3):
         write_pds3(tmp_path / f"f{k}.IMG", _frame(k))
-    np.testing.assert_array_equal(FrameSequence(tmp_path).timestamps, [0.0, 1.0, 2.0])
+    np.testing.assert_array_equal(open_frames(tmp_path).timestamps, [0.0, 1.0, 2.0])
 
 
 def test_pds3_camera_model(tmp_path):

@@ -16,7 +16,7 @@ from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.lie import se3_inv, so3_log
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_tum
-from monovo_cli.io.frames import FrameSequence
+from monovo_cli.io.sources import open_frames
 from monovo_cli.synth.write import synthesize
 
 
@@ -47,7 +47,7 @@ def test_noise_in_the_middle_is_lost_with_a_reason_and_tracking_resumes(drive, t
     shutil.copytree(drive, seq)
     _noise_frames(seq, [9, 10, 11])
     cfg = load_init(seq / "init.yaml")
-    fs = FrameSequence(seq / "frames")
+    fs = open_frames(seq / "frames")
     res = list(estimate_frames(((f.index, f.timestamp, f.image) for f in fs), cfg.camera, cfg.plane,
                      cfg.region, TrackOptions()))
     for r in res[9:12]:
@@ -71,7 +71,7 @@ def test_a_jump_is_bridged_by_a_fresh_keyframe(drive, tmp_path):
     for k, p in enumerate(paths[8:], start=8):
         shutil.copyfile(sorted((far / "frames").glob("*.png"))[k], p)
     cfg = load_init(seq / "init.yaml")
-    res = list(estimate_frames(((f.index, f.timestamp, f.image) for f in FrameSequence(seq / "frames")),
+    res = list(estimate_frames(((f.index, f.timestamp, f.image) for f in open_frames(seq / "frames")),
                      cfg.camera, cfg.plane, cfg.region, TrackOptions()))
     run = longest = 0
     for r in res:
@@ -140,7 +140,7 @@ class _FailingOn(Odometry):
 
 def _run(odo, seq):
     out = []
-    for f in FrameSequence(seq / "frames"):
+    for f in open_frames(seq / "frames"):
         out.append(odo.start(f.index, f.timestamp, f.image) if not out else
                    odo.step(f.index, f.timestamp, f.image))
     return out
@@ -180,7 +180,7 @@ def test_a_lost_frame_keeps_the_prediction_the_features_confirm(drive):
     cfg = load_init(drive / "init.yaml")
     odo = _FailingOn(cfg.camera, cfg.plane, cfg.region, fail={8})
     res = []
-    for f in FrameSequence(drive / "frames"):
+    for f in open_frames(drive / "frames"):
         res.append(odo.start(f.index, f.timestamp, f.image) if not res else
                    odo.step(f.index, f.timestamp, f.image))
         if f.index == 8:

@@ -42,7 +42,7 @@ from monovo_cli.image.pyramid import build_pyramid
 from monovo_cli.image.sampling import sample_bilinear
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_tum
-from monovo_cli.io.frames import FrameSequence
+from monovo_cli.io.sources import open_frames
 from monovo_cli.synth.motion import camera_mount
 from monovo_cli.synth.raycast import TerrainRenderer
 from monovo_cli.synth.render import default_camera, finish_frame, ground_in_camera, ground_region
@@ -502,7 +502,7 @@ def rolling_drive(tmp_path_factory):
 
 def run(seq, relief: bool):
     cfg = load_init(seq / "init.yaml")
-    images = [f.image for f in FrameSequence(seq / "frames")]
+    images = [f.image for f in open_frames(seq / "frames")]
     keys = []
     res = list(estimate_frames(((k, float(k), im) for k, im in enumerate(images)), cfg.camera, cfg.plane,
                      cfg.region, TrackOptions(relief=relief), on_keyframe=keys.append))

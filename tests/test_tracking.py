@@ -18,13 +18,13 @@ from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.lie import se3_inv, so3_log
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_motion_csv, read_tum
-from monovo_cli.io.frames import FrameSequence
+from monovo_cli.io.sources import open_frames
 from monovo_cli.synth.write import synthesize
 
 
 def _run(seq: Path, options: TrackOptions | None = None):
     cfg = load_init(seq / "init.yaml")
-    frames = FrameSequence(seq / "frames")
+    frames = open_frames(seq / "frames")
     plane = cfg.plane
     gen = ((f.index, f.timestamp, f.image) for f in frames)
     return list(estimate_frames(gen, cfg.camera, plane, cfg.region, options or TrackOptions()))
@@ -120,7 +120,7 @@ def test_short_drive_tracks_against_ground_truth(drive):
 
 def test_keyframe_points_lie_on_the_plane_with_valid_barycentrics(drive):
     cfg = load_init(drive / "init.yaml")
-    img = FrameSequence(drive / "frames").read(0).image
+    img = open_frames(drive / "frames").read(0).image
     plane = cfg.plane
     key = build_keyframe(0, img, cfg.camera, plane, cfg.region, np.eye(4),
                          TrackOptions(max_points=3000))

@@ -16,8 +16,8 @@ from click.testing import CliRunner
 
 from monovo_cli.cli import main
 from monovo_cli.errors import InputError
-from monovo_cli.io.frames import FrameSequence
 from monovo_cli.io.model import load_model
+from monovo_cli.io.sources import open_frames
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -182,12 +182,12 @@ def test_times_txt_beside_frames_is_used_and_a_conflict_refused(seq, tmp_path):
     shutil.copytree(seq, s)
     times = "".join(f"{100 + 0.1 * k:.1f}\n" for k in range(10))
     (s / "times.txt").write_text(times)
-    np.testing.assert_allclose(FrameSequence(s).timestamps, 100 + 0.1 * np.arange(10))
+    np.testing.assert_allclose(open_frames(s).timestamps, 100 + 0.1 * np.arange(10))
     (s / "frames" / "times.txt").write_text(times)  # the same in both places: fine
-    np.testing.assert_allclose(FrameSequence(s).timestamps, 100 + 0.1 * np.arange(10))
+    np.testing.assert_allclose(open_frames(s).timestamps, 100 + 0.1 * np.arange(10))
     (s / "frames" / "times.txt").write_text("".join(f"{k}\n" for k in range(10)))
     with pytest.raises(InputError, match=r"times\.txt.*and .*times\.txt.* differ"):
-        FrameSequence(s)
+        open_frames(s)
 
 
 def test_groundtruth_of_another_sequence_is_refused(seq, tmp_path, caplog):

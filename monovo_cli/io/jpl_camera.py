@@ -46,7 +46,6 @@ MAX_IMAGE_SIDE = 100_000
 MAX_RMS_PX = 1.0
 #: ... and those above this one are warned about.
 WARN_RMS_PX = 0.05
-PDS_SUFFIXES = (".img", ".lbl", ".xml")
 
 
 def _fail(name: str, message: str) -> ConfigError:

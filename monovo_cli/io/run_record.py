@@ -6,11 +6,13 @@ fingerprints of the inputs:
 
 * small files (init.yaml, times.txt, the model, mask, prior and ground truth): their size
   and SHA-256;
-* the frames: their number and the SHA-256 of the frame list, one line per input file with
-  its name, size (bytes) and modification time (ns). The frames' contents are **not**
-  hashed -- reading a long archive twice would cost as much as tracking it -- except frame
-  0's file, which carries the ground model. A video or a bag is fingerprinted the same way
-  (its file(s) by name, size and modification time).
+* the frames: their source's fingerprint
+  (:meth:`~monovo_cli.io.sources.base.FrameSource.fingerprint`): their number and the
+  SHA-256 of the frame list, one line per input file with its name, size (bytes) and
+  modification time (ns). The frames' contents are **not** hashed --
+  reading a long archive twice would cost as much as tracking it -- except frame 0's file,
+  which carries the ground model. A video or a bag is fingerprinted the same way (its
+  file(s) by name, size and modification time).
 
 It is written atomically (:mod:`monovo_cli.io.atomic`) when the run starts, so an
 interrupted run has one too.
@@ -20,7 +22,6 @@ from __future__ import annotations
 
 import dataclasses
 import datetime
-import hashlib
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -28,52 +29,12 @@ from typing import Any
 import yaml
 
 from monovo_cli.io.atomic import atomic_write_text
-from monovo_cli.io.frames import FrameSequence
+from monovo_cli.io.digest import file_fingerprint
+from monovo_cli.io.sources import FrameSource
 from monovo_cli.version import __version__
 
 RUN_FILE = "run.yaml"
 FORMAT = "monovo-run-1"
-
-
-def sha256_file(path: Path) -> str:
-    """SHA-256 (hex) of the file ``path``, read in 1 MiB chunks."""
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()
-
-
-def file_fingerprint(path: Path | None) -> dict[str, Any] | None:
-    """``{path, bytes, sha256}`` of a file (absolute path), None for no file."""
-    if path is None:
-        return None
-    path = Path(path)
-    return {"path": str(path.resolve()), "bytes": path.stat().st_size, "sha256": sha256_file(path)}
-
-
-def frames_fingerprint(frames: FrameSequence) -> dict[str, Any]:
-    """The frames' fingerprint (module docstring): source, kind, count, the SHA-256 of the
-    list of (name, size, mtime) of the input files, frame 0's file's SHA-256 (images and PDS
-    products), and times.txt's fingerprint."""
-    h = hashlib.sha256()
-    for p in frames.paths:
-        try:
-            st = p.stat()
-            size, mtime = st.st_size, st.st_mtime_ns
-        except OSError:  # e.g. a dangling link: tracking reports the frame when it gets there
-            size, mtime = -1, -1
-        h.update(f"{p.name}\0{size}\0{mtime}\n".encode())
-    one_file_per_frame = frames.kind in ("images", "pds")
-    return {
-        "source": str(Path(frames.dir).resolve()),
-        "kind": frames.kind,
-        "count": len(frames),
-        "list_sha256": h.hexdigest(),
-        "list_covers": "name, size and mtime of every input file (contents not hashed)",
-        "frame0_sha256": sha256_file(frames.paths[0]) if one_file_per_frame else None,
-        "times": file_fingerprint(frames.times_path),
-    }
 
 
 def _plain(value: Any) -> Any:
@@ -88,7 +49,7 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def run_record(command: str, options: Any, own: Mapping[str, Any], frames: FrameSequence,
+def run_record(command: str, options: Any, own: Mapping[str, Any], frames: FrameSource,
                init_yaml: Path, files: Mapping[str, Path | None]) -> dict[str, Any]:
     """The record of a run of ``monovo command``: ``options`` the TrackOptions, ``own`` the
     command's own options, ``files`` the side inputs (model, mask, ...) to fingerprint."""
@@ -98,7 +59,7 @@ def run_record(command: str, options: Any, own: Mapping[str, Any], frames: Frame
         "command": command,
         "started": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "options": {"track": dataclasses.asdict(options), **_plain(dict(own))},
-        "inputs": {"init_yaml": file_fingerprint(init_yaml), "frames": frames_fingerprint(frames),
+        "inputs": {"init_yaml": file_fingerprint(init_yaml), "frames": frames.fingerprint(),
                    **{name: file_fingerprint(p) for name, p in files.items()}},
     }
 

@@ -21,12 +21,12 @@ from monovo_cli.core.options import TrackOptions
 from monovo_cli.errors import InputError, MonovoError, OutputError
 from monovo_cli.version import __version__
 
-FRAMES_SUBDIR = "frames"  # as monovo_cli.io.frames (not imported here: it loads OpenCV)
+FRAMES_SUBDIR = "frames"  # as monovo_cli.io.sources (not imported here: it loads OpenCV)
 INIT_FILE = "init.yaml"
 DONE_FILE = "done.json"
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                     "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS")
-DONE_FORMAT = 2  # 2: options as dataclasses.asdict(JobOptions), every tracking setting
+DONE_FORMAT = 3  # 2: options as dataclasses.asdict(JobOptions); 3: inputs by the frames' fingerprint
 
 log = logging.getLogger(__name__)
 
@@ -58,7 +58,7 @@ class JobOptions:
 
 
 def _natural_parts(rel: Path) -> tuple:
-    from monovo_cli.io.frames import natural_key
+    from monovo_cli.io.sources import natural_key
 
     return tuple(natural_key(p) for p in rel.parts)
 
@@ -80,7 +80,7 @@ def is_sequence_folder(path: Path) -> bool:
 
 def _containers(path: Path) -> list[Path]:
     """The videos and ROS bags of a folder holding ``init.yaml`` but no ``frames/``."""
-    from monovo_cli.io.containers import list_containers
+    from monovo_cli.io.sources import list_containers
 
     return list_containers(path) if (path / INIT_FILE).is_file() else []
 
@@ -116,7 +116,7 @@ def find_sequences(root: Path, *, pattern: str | None = None,
             matches = list(root.glob(pattern))
         except (ValueError, NotImplementedError) as exc:
             raise InputError(f"--glob {pattern!r}: not a usable pattern ({exc})") from None
-        from monovo_cli.io.containers import is_container
+        from monovo_cli.io.sources import is_container
 
         for m in matches:
             real = os.path.realpath(m)
@@ -179,7 +179,7 @@ def limit_threads() -> None:
 
 
 def _sha256(path: Path) -> str:
-    from monovo_cli.io.run_record import sha256_file  # (yaml: not at a worker's start)
+    from monovo_cli.io.digest import sha256_file
 
     return sha256_file(path)
 
@@ -191,22 +191,23 @@ def _folder(seq: Path) -> Path:
 
 def _input_fingerprint(seq_dir: Path, prior: str | None,
                        topic: str | None = None) -> tuple[int, str]:
-    """(number of frames, SHA-256 over the frame names and sizes, init.yaml and the prior).
+    """(number of frames, SHA-256 over the frames' fingerprint, init.yaml and the prior).
 
-    Frames are compared by name and size, not content: hashing an archive's images on every
-    resume would cost as much as reading them for tracking.
+    The frames' fingerprint is the one run.yaml records, less where the sequence lies
+    (:meth:`~monovo_cli.io.sources.base.FrameSource.digest`): the names, sizes and
+    modification times of the input files, frame 0's file and times.txt, not every frame's
+    content -- hashing an archive's images on every resume would cost as much as reading
+    them for tracking.
     """
-    from monovo_cli.io.frames import FrameSequence, find_init_yaml
+    from monovo_cli.io.sources import find_init_yaml, open_frames
 
-    frames = FrameSequence(seq_dir, topic=topic)
-    h = hashlib.sha256()
-    for p in frames.paths:
-        h.update(f"{p.name}\0{p.stat().st_size}\n".encode())
-    for extra in (find_init_yaml(Path(seq_dir)), frames.times_path,
-                  _folder(Path(seq_dir)) / prior if prior else None):
+    with open_frames(seq_dir, topic=topic) as frames:
+        n_frames = len(frames)
+        h = hashlib.sha256(f"frames\0{frames.digest()}\n".encode())
+    for extra in (find_init_yaml(Path(seq_dir)), _folder(Path(seq_dir)) / prior if prior else None):
         if extra is not None and Path(extra).is_file():
             h.update(f"{Path(extra).name}\0{_sha256(Path(extra))}\n".encode())
-    return len(frames), h.hexdigest()
+    return n_frames, h.hexdigest()
 
 
 def _result(seq_dir: Path, out_dir: Path, **fields: Any) -> dict[str, Any]:
@@ -293,10 +294,11 @@ def is_complete(seq_dir: str | Path, out_dir: str | Path,
 
     Complete means: ``done.json`` (written by :func:`track_one` after every other output)
     is there and readable; it was written for the same options (:class:`JobOptions`)
-    and the same inputs (number of frames, frame names and sizes, init.yaml, times.txt and
-    the prior); and every file it lists is there with the size and SHA-256 it recorded --
-    motion.csv with one row per frame >= 1, trajectory.csv and .tum with one per frame, as
-    checked before the marker was written. Returns ``(complete, reason)``, the reason
+    and the same inputs (number of frames; the names, sizes and modification times of the
+    frame files, frame 0's file, times.txt, init.yaml and the prior); and every file it
+    lists is there with the size and SHA-256 it recorded -- motion.csv with one row per
+    frame >= 1, trajectory.csv and .tum with one per frame, as checked before the marker
+    was written. Returns ``(complete, reason)``, the reason
     saying what is missing or different.
     """
     seq_dir, out_dir = Path(seq_dir), Path(out_dir)

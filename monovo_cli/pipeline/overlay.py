@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from monovo_cli.errors import InputError
-from monovo_cli.io.frames import FrameSequence
+from monovo_cli.io.sources import FrameSource
 from monovo_cli.pipeline.tracking import open_sequence
 
 if TYPE_CHECKING:
@@ -33,7 +33,7 @@ class OverlaySummary:
     triangles: int = 1
 
 
-def _trajectory_by_frame(path: Path, frames: FrameSequence) -> dict[int, np.ndarray]:
+def _trajectory_by_frame(path: Path, frames: FrameSource) -> dict[int, np.ndarray]:
     """``{frame: world_from_cam}`` from a trajectory.csv, or a TUM file matched to the frames'
     timestamps (within 1e-6 s)."""
     from monovo_cli.io.formats import read_trajectory_csv, read_tum

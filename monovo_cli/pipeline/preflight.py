@@ -25,7 +25,7 @@ from monovo_cli.core.keyframe import Keyframe, mask_keyframe
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.errors import InputError, OutputError
 from monovo_cli.image.pyramid import num_levels
-from monovo_cli.io.frames import FrameSequence
+from monovo_cli.io.sources import FrameSource
 from monovo_cli.pipeline.tracking import OpenedSequence
 
 log = logging.getLogger(__name__)
@@ -84,7 +84,7 @@ def existing_results(out_dir: Path, names: Sequence[str]) -> list[str]:
 # ----------------------------------------------------------------------------- ground truth
 
 
-def groundtruth_poses(path: Path, frames: FrameSequence) -> np.ndarray:
+def groundtruth_poses(path: Path, frames: FrameSource) -> np.ndarray:
     """The ``--groundtruth`` TUM file's poses (M, 4, 4) matched to the frames by timestamp
     (nearest within :func:`~monovo_cli.evaluation.sync.default_max_dt` of the frames), in frame
     order. InputError when none matches -- the ground truth of another sequence -- and a

@@ -32,7 +32,7 @@ from monovo_cli.core.run import RunRecorder, TrackRun
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import InputError, TrackingError
 from monovo_cli.io.config import InitConfig, check_frame_size, load_init
-from monovo_cli.io.frames import Frame, FrameSequence, find_init_yaml, resolve_sequence
+from monovo_cli.io.sources import Frame, FrameSource, find_init_yaml, open_frames, resolve_sequence
 from monovo_cli.mapping.hindsight import SmoothedDrive, smooth_drive
 from monovo_cli.mapping.terrain_map import TerrainMap
 
@@ -44,7 +44,7 @@ class OpenedSequence:
     """A sequence ready to track: its ``frames``, its init.yaml ``config`` and frame 0
     (``first``), decoded once and checked against the config's camera."""
 
-    frames: FrameSequence
+    frames: FrameSource
     config: InitConfig
     first: Frame
 
@@ -59,7 +59,7 @@ def open_sequence(seq: str | Path, params: str | Path | InitConfig | None = None
     camera's.
     """
     seq_dir = resolve_sequence(Path(seq))
-    frames = FrameSequence(seq_dir, topic=topic)
+    frames = open_frames(seq_dir, topic=topic)
     if isinstance(params, InitConfig):
         cfg = params
     else:
@@ -212,7 +212,7 @@ def _chain(first: FrameResult, rest: Iterator[FrameResult]) -> Iterator[FrameRes
 
 def read_mask(path: Path, cfg: InitConfig) -> np.ndarray:
     """A mask PNG -> (H, W) bool of usable pixels (the PNG's non-zero pixels are excluded)."""
-    from monovo_cli.io.frames import read_gray
+    from monovo_cli.io.grey import read_gray
 
     img = read_gray(path)
     if img.shape != (cfg.camera.height, cfg.camera.width):

@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 
 from monovo_cli.errors import InputError
-from monovo_cli.io.frames import read_gray
+from monovo_cli.io.grey import read_gray
 
 TEXTURE_MEAN = 120.0
 TEXTURE_STD = 45.0
@@ -159,7 +159,7 @@ def procedural_texture_size(width: int, height: int) -> int:
 
 def load_texture(path: Path) -> np.ndarray:
     """A user's image as a periodic grey float32 texture: decoded as frames are
-    (:func:`~monovo_cli.io.frames.read_gray`: grey levels 0..255 whatever the depth or colour),
+    (:func:`~monovo_cli.io.grey.read_gray`: grey levels 0..255 whatever the depth or colour),
     resized to multiples of 32 px per side and mirrored (image | flipped) both ways, so it
     tiles seamlessly."""
     path = Path(path)
