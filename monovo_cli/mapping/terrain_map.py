@@ -21,15 +21,12 @@ diagnostic run.)
 rays against its successor's image (or the last frame's) at the successor's pose
 (``refine="sweep"``, the default: :func:`~monovo_cli.mapping.depth.sweep_depths`): a point
 whose patch clearly matches at another height (a rock the 0.4 m relief does not see) moves
-there; the rest stay on the relief. ``refine="newton"`` is the Gauss-Newton per-point
-refinement under a prior toward the relief (:func:`~monovo_cli.mapping.depth.refine_depths`;
-noisier over whole drives, docs/algorithm.md section "The terrain products"), None keeps
-every point where tracking put it. Heights are measured
-in the **ground frame** of the first keyframe's smoothed plane (frame 0's ground as tracking
-measured it: init.yaml's plane, or the tilt the first frames corrected it to, smoothed): origin at
-the foot of camera 0 on the plane, ``forward`` camera 0's optical axis projected onto it,
-``right = normal x forward``, ``up = -normal`` (heights above the plane, m), the axes of
-``trajectory.png``.
+there; the rest stay on the relief. ``refine=None`` keeps every point where tracking put
+it. Heights are measured in the **ground frame** of the first keyframe's smoothed plane
+(frame 0's ground as tracking measured it: init.yaml's plane, or the tilt the first frames
+corrected it to, smoothed): origin at the foot of camera 0 on the plane, ``forward``
+camera 0's optical axis projected onto it, ``right = normal x forward``, ``up = -normal``
+(heights above the plane, m), the axes of ``trajectory.png``.
 :meth:`TerrainMap.height_grid` bins the points into square cells of the driven strip: a
 cell's height is the mean of its points'.
 
@@ -42,7 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from monovo_cli.mapping.depth import refine_depths, sweep_depths
+from monovo_cli.mapping.depth import sweep_depths
 from monovo_cli.mapping.hindsight import smoothed_key_poses, smoothed_planes
 from monovo_cli.core.keyframe import Keyframe
 from monovo_cli.core.plane.belief import PlaneLink
@@ -102,6 +99,8 @@ class TerrainMap:
                  refine: str | None = "sweep", smooth: bool = True) -> None:
         self.plane0 = plane  # (init.yaml's: the ground frame until a keyframe comes)
         self.points_per_keyframe = int(points_per_keyframe)
+        if refine not in ("sweep", None):
+            raise ValueError(f"refine: expected 'sweep' or None, got {refine!r}")
         self.refine = refine
         self.smooth = smooth
         self._chunks: dict[int, _Chunk] = {}
@@ -163,18 +162,11 @@ class TerrainMap:
 
     def _refine(self, key: Keyframe, image: np.ndarray, cur_from_key: np.ndarray) -> None:
         pts = key.levels[0].points
-        if self.refine is None or pts.camera.has_distortion or \
-                (self.refine == "sweep" and self._last_image is None) or \
+        if self.refine is None or pts.camera.has_distortion or self._last_image is None or \
                 float(np.linalg.norm(cur_from_key[:3, 3])) < 1e-3 * key.plane.distance:
             return  # (no baseline: the images cannot tell depths apart)
-        step = self._step(key)
-        if self.refine == "sweep":
-            X, moved = sweep_depths(pts.camera, key.plane, pts.X[::step], self._last_image,
-                                    image, cur_from_key)
-        else:
-            d = refine_depths(pts.camera, key.plane, pts.X[::step], pts.intensity[::step],
-                              image, cur_from_key, key_image=self._last_image)
-            X, moved = d.X, d.measured
+        X, moved = sweep_depths(pts.camera, key.plane, pts.X[::self._step(key)],
+                                self._last_image, image, cur_from_key)
         self._store(key, X)
         self.refined += int(np.count_nonzero(moved))
 
