@@ -17,10 +17,10 @@ from pathlib import Path
 
 import numpy as np
 
-from monovo_cli.mapping.terrain_map import HeightGrid
 from monovo_cli.errors import InputError
 from monovo_cli.io.atomic import atomic_write_bytes, atomic_write_text
-from monovo_cli.io.formats import _csv_rows, _floats
+from monovo_cli.io.formats import csv_rows, floats
+from monovo_cli.mapping.terrain_map import HeightGrid
 
 HEIGHTMAP_HEADER = "right_m,forward_m,height_m,points,x_m,y_m,z_m"
 
@@ -96,8 +96,8 @@ def read_heightmap(path: Path) -> tuple[HeightGrid, np.ndarray]:
             raise InputError(f"{path}: no {HEIGHTMAP_NAME} in this directory (written by "
                              "'monovo track SEQ -o DIR --terrain-out')")
         path = path / HEIGHTMAP_NAME
-    rows = _csv_rows(path, "height map", HEIGHTMAP_HEADER.split(","))
-    vals = np.array([_floats(r[:7], path, i) for i, r in rows]).reshape(-1, 7)
+    rows = csv_rows(path, "height map", HEIGHTMAP_HEADER.split(","))
+    vals = np.array([floats(r[:7], path, i) for i, r in rows]).reshape(-1, 7)
     if len(vals) < 3:
         raise InputError(f"{path}: {len(vals)} cells; a height map needs at least 3")
     G, W = vals[:, :3], vals[:, 4:7]

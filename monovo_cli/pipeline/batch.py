@@ -34,13 +34,13 @@ from monovo_cli.errors import MonovoError, OutputError
 from monovo_cli.pipeline.batch_job import (
     DONE_FILE,
     THREAD_VARIABLES,
-    _result,
     available_cores,
     done_result,
     find_sequences,
     is_complete,
     limit_threads,
     normalize_options,
+    result,
     sequence_name,
     track_one,
 )
@@ -89,8 +89,8 @@ def _pool_task(task: Callable[..., dict], seq_dir: str, out_dir: str, options: d
 
 
 def _lost(job: _Job, why: str) -> dict[str, Any]:
-    return _result(job.seq_dir, job.out_dir, error=f"internal error: {why}", error_kind="internal",
-                   worker="")
+    return result(job.seq_dir, job.out_dir, error=f"internal error: {why}", error_kind="internal",
+                  worker="")
 
 
 def _terminate(executor: ProcessPoolExecutor) -> None:
@@ -335,7 +335,7 @@ def run_batch(root: str | Path, out_root: str | Path, options: dict[str, Any] | 
     for i, rel in enumerate(rels):
         seq_dir, out_dir = (root / rel).resolve(), (out_root / rel).resolve()
         name = sequence_name(rel)
-        res = _result(seq_dir, out_dir, status="pending", worker="")
+        res = result(seq_dir, out_dir, status="pending", worker="")
         if resume:
             complete, why = is_complete(seq_dir, out_dir, opts)
             if complete:
