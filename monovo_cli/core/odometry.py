@@ -316,10 +316,10 @@ class Odometry:
         world_from_cur = self._key.world_from_key @ se3_inv(cur_from_key)
         step = se3_inv(self._world_from_prev) @ world_from_cur
         if o.max_step_m is not None and np.linalg.norm(step[:3, 3]) > o.max_step_m:
-            return f"step beyond --max-step {o.max_step_m} m"
+            return f"step beyond the maximum step {o.max_step_m} m"
         if o.max_step_deg is not None and \
                 np.degrees(np.linalg.norm(so3_log(step[:3, :3]))) > o.max_step_deg:
-            return f"step beyond --max-step {o.max_step_deg} deg"
+            return f"step beyond the maximum step {o.max_step_deg} deg"
         return ""
 
     def _needs_reanchor(self, est: Estimate, key: Keyframe, cur_from_key: np.ndarray) -> bool:

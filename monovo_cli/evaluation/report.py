@@ -40,7 +40,7 @@ def format_report(ev: Evaluation) -> str:
         lines.append(f"  ATE RMSE, {what:<18}{ev.ate_rmse_aligned:.6f} m")
     elif ev.start_offset_m > 1e-6:
         lines.append(f"  (the trajectories start {ev.start_offset_m:.3g} m apart: another "
-                     "world frame? --align compares their shapes)")
+                     "world frame? aligning them compares their shapes)")
     pct = f"{ev.final_drift_pct:.3f} %" if math.isfinite(ev.final_drift_pct) else "n/a"
     rate = (f"{ev.rotation_drift_deg_per_m:.4f} deg/m"
             if math.isfinite(ev.rotation_drift_deg_per_m) else "n/a")

@@ -93,8 +93,8 @@ def read_heightmap(path: Path) -> tuple[HeightGrid, np.ndarray]:
     path = Path(path)
     if path.is_dir():
         if not (path / HEIGHTMAP_NAME).is_file():
-            raise InputError(f"{path}: no {HEIGHTMAP_NAME} in this directory (written by "
-                             "'monovo track SEQ -o DIR --terrain-out')")
+            raise InputError(f"{path}: no {HEIGHTMAP_NAME} in this directory "
+                             "(a tracking run writes one with its terrain products)")
         path = path / HEIGHTMAP_NAME
     rows = csv_rows(path, "height map", HEIGHTMAP_HEADER.split(","))
     vals = np.array([floats(r[:7], path, i) for i, r in rows]).reshape(-1, 7)

@@ -175,4 +175,4 @@ def require_points(points: LevelPoints, *, minimum: int, threshold: float) -> No
     if len(points) < minimum:
         raise TrackingError(
             f"only {len(points)} observation points with gradient > {threshold:.3g} in the ground "
-            f"region (need {minimum}); lower --threshold or choose another region")
+            f"region (need {minimum}); lower the gradient threshold or choose another region")
