@@ -4,7 +4,8 @@ The model is a rectangle of two triangles lying on the ground plane, expressed i
 camera frame of the keyframe it was built on (x right, y down, z forward, metres). An
 observation point is a keyframe pixel inside the model's image with a Sobel gradient
 magnitude above ``threshold`` (the paper's delta_1), lifted onto the plane by
-intersecting its viewing ray with the plane; it carries its intensity and gradient.
+intersecting its viewing ray with the plane; it carries its intensity and gradient. How
+many points each level keeps and why: docs/algorithm.md section 3, "Observation points".
 """
 
 from __future__ import annotations
@@ -50,10 +51,12 @@ class LevelPoints:
 
     @property
     def tri(self) -> np.ndarray:
+        """(N,) int8: the model triangle (0 or 1) each point lies on."""
         return self._triangles[0]
 
     @property
     def bary(self) -> np.ndarray:
+        """(N, 3) float32: each point's barycentric coordinates on its triangle."""
         return self._triangles[1]
 
 

@@ -1,4 +1,5 @@
-"""A feature-based motion hypothesis over the known ground plane: the direct search's capture range.
+"""A feature-based motion hypothesis over the known ground plane: the direct search's capture
+range (docs/algorithm.md section 7).
 
 The direct estimator converges from within a few pixels of the answer; a rover step of 0.75 m
 or an 18 deg turn moves the ground by a large part of the image. Features do not care how far
@@ -103,8 +104,8 @@ class FeatureOptions:
         return level
 
 
-# The cheap setting: at most ~256 px on the shorter side, half the features
-# (benchmarks/real.py measures both).
+# The cheap setting: at most ~256 px on the shorter side, half the features (the tracker's
+# capture search; docs/algorithm.md section 7).
 CHEAP = FeatureOptions(level=None, features=1000)
 
 
