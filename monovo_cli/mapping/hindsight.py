@@ -1,5 +1,6 @@
 """Hindsight for what a run writes at its end: the keyframe planes smoothed over the whole
-drive, and the poses re-scaled with them.
+drive, and the poses re-scaled with them (docs/algorithm.md section 9, "The trajectory in
+hindsight").
 
 Every keyframe's plane is the MAP of what was known when it was anchored
 (:mod:`monovo_cli.core.plane.belief`): the plane carried from the previous keyframe, the
@@ -30,9 +31,7 @@ drawn at a crest is a sample as far from the mean as the bobbing goes. So the di
 solved again over the whole chain (:func:`smoothed_distances`): the carried distances of the
 links with the variance the carrying added, and the mounting prior on the mean of
 ``log d_f`` over each keyframe's segment (:func:`segment_lifts`) with the prior's own std
-(the frames of a segment are not independent samples: together they weigh as one). On the
-flat bobbing drive the final error goes from 0.069 % (the prior at the keyframes alone) to
-0.024 %, keyframe 0's distance from 35.8 mm off to 1.4 mm (``benchmarks.hindsight``). The
+(the frames of a segment are not independent samples: together they weigh as one). The
 tilts keep the backward pass's (they hardly move).
 
 ``motion.csv`` is written as frames are done and stays causal; trajectory.csv, .tum and the
@@ -200,8 +199,7 @@ def smoothed_poses(index: Sequence[int], world_from_cam: np.ndarray,
     re-scaled with the smoothed planes of ``keys`` (``(frame index, keyframe)``, oldest
     first): each frame's motion from the latest keyframe at or before it scaled by that
     keyframe's ``d' / d``. Frames before the first keyframe keep their poses. ``segments``
-    False: the mounting prior at the keyframes alone, as the filter had it (for comparison,
-    ``benchmarks.hindsight``)."""
+    False: the mounting prior at the keyframes alone, as the filter had it (for comparison)."""
     W = np.asarray(world_from_cam, dtype=float)
     if not keys:
         return W.copy()
@@ -227,6 +225,7 @@ class Hindsight:
         self._keys: dict[int, KeyRecord] = {}
 
     def add(self, index: int, key: Anchored) -> None:
+        """Keyframe ``key`` anchored on frame ``index`` (its pose, plane and link are copied)."""
         self._keys[int(index)] = KeyRecord(np.array(key.world_from_key), key.plane, key.link)
 
     def poses(self, index: Sequence[int], world_from_cam: np.ndarray) -> np.ndarray:
