@@ -63,6 +63,8 @@ class MonovoGroup(click.Group):
     """Turns library errors into one-line messages with the documented exit statuses."""
 
     def invoke(self, ctx: click.Context):
+        """Run the command; a MonovoError becomes one line with the flags put in (exit 2), an
+        environment OSError too, anything else an internal error (exit 1)."""
         try:
             return super().invoke(ctx)
         except MonovoError as exc:

@@ -53,6 +53,8 @@ class MotionRow:
     reason: str = ""  # why the frame is lost or reinit; one line, no commas or quotes
 
     def fields(self, with_std: bool, with_reason: bool = False) -> list[str]:
+        """The row's motion.csv fields (strings): translation m, rotation vector deg, then the
+        std columns (m, deg; empty where not finite) and the reason if asked for."""
         t = self.prev_from_cur[:3, 3]
         r = np.degrees(so3_log(self.prev_from_cur[:3, :3]))
         out = [str(self.frame), *(fmt(v) for v in t), *(fmt(v) for v in r), fmt(self.msd),
@@ -79,6 +81,7 @@ class MotionWriter:
         self._stream.flush()
 
     def write(self, row: MotionRow) -> None:
+        """One row, flushed."""
         self._stream.write(",".join(row.fields(self._with_std, self._with_reason)) + "\n")
         self._stream.flush()
 
@@ -106,6 +109,7 @@ class CovarianceWriter:
         self._stream.flush()
 
     def close(self) -> None:
+        """Close the stream (the rows are already flushed)."""
         self._stream.close()
 
 
@@ -131,6 +135,7 @@ def tum_text(timestamps: Sequence[float], world_from_cam: Sequence[np.ndarray]) 
 
 
 def motion_csv_text(rows: Iterable[MotionRow], *, with_std: bool = False) -> str:
+    """motion.csv content of ``rows``, header first, as :class:`MotionWriter` streams it."""
     buf = io.StringIO()
     w = MotionWriter(buf, with_std=with_std)
     for r in rows:

@@ -54,6 +54,8 @@ def read_ply(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def write_ply(path: Path, X: np.ndarray, intensity: np.ndarray) -> None:
+    """Write :func:`ply_bytes` of points ``X`` (N, 3) m and ``intensity`` (N,) to ``path``,
+    atomically."""
     atomic_write_bytes(Path(path), ply_bytes(X, intensity))
 
 
@@ -72,6 +74,7 @@ def heightmap_csv_text(grid: HeightGrid, ground_from_world: np.ndarray) -> str:
 
 
 def write_heightmap_csv(path: Path, grid: HeightGrid, ground_from_world: np.ndarray) -> None:
+    """Write :func:`heightmap_csv_text` to ``path``, atomically."""
     atomic_write_text(Path(path), heightmap_csv_text(grid, ground_from_world))
 
 

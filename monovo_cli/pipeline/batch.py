@@ -260,14 +260,17 @@ class BatchSummary:
     workers: int | None = None
 
     def count(self, status: str) -> int:
+        """How many sequences ended with ``status``."""
         return sum(r["status"] == status for r in self.results)
 
     @property
     def failed(self) -> list[dict[str, Any]]:
+        """The results of the sequences that failed, in order."""
         return [r for r in self.results if r["status"] == "failed"]
 
     @property
     def internal_errors(self) -> list[dict[str, Any]]:
+        """The failures that were not bad input (internal errors, lost frames, lost workers)."""
         return [r for r in self.failed if r.get("error_kind") != "input"]
 
 

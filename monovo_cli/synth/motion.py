@@ -129,7 +129,7 @@ def pair_poses(cam: PinholeCamera, rng: np.random.Generator, *, max_translation:
 
 # --------------------------------------------------------------------------- rover drives over terrain
 
-TERRAIN_PITCH_DEG = 40.0  # camera pitch of the terrain drives (issue 14.2)
+TERRAIN_PITCH_DEG = 40.0  # camera pitch of the terrain drives (benchmarks/terrain.py)
 ROVER_WHEELBASE = 1.4  # m, front to rear wheel contacts (a MER-sized rover)
 ROVER_TRACK = 1.2  # m, left to right wheel contacts
 ROVER_MAST_FORWARD = 0.4  # m, the mast ahead of the rover's centre (the turning centre)

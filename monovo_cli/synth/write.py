@@ -112,6 +112,8 @@ EXPOSURE_BIAS = 15.0  # grey levels
 
 @dataclass(frozen=True)
 class SynthSummary:
+    """What :func:`synthesize` wrote."""
+
     out_dir: Path
     sequences: int  # 1 for drive, N for pairs
     frames_per_sequence: int

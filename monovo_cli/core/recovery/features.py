@@ -146,6 +146,7 @@ class FeatureMotion:
 
     @property
     def inlier_ratio(self) -> float:
+        """The share of the matches RANSAC kept (0 without matches)."""
         return self.inliers / self.matches if self.matches else 0.0
 
 
