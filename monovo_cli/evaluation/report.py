@@ -9,7 +9,8 @@ from monovo_cli.evaluation.metrics import Evaluation
 
 
 def format_report(ev: Evaluation) -> str:
-    """The paper-style tables (Tables 10.1 / 10.2) and the trajectory measures as text."""
+    """``ev`` as text: the paper-style tables (Tables 10.1 / 10.2, per-axis mean and std of
+    the relative-motion errors, m and deg) and the trajectory measures, one per line."""
     def g(x: float) -> str:
         return f"{x:.5f}" if abs(x) >= 1e-5 or x == 0 else f"{x:.3e}"
 

@@ -61,7 +61,9 @@ class LevelPoints:
 
 
 def default_threshold(noise_sigma: float) -> float:
-    """Default delta_1: three times the std of one Sobel component of pure noise (0.433 sigma)."""
+    """Default delta_1 (grey levels per px) for image noise ``noise_sigma`` (grey levels):
+    three times the std of one Sobel component of pure noise (0.433 sigma), at least 1
+    (docs/algorithm.md section 3, "Observation points")."""
     return max(1.0, 3.0 * 0.433 * noise_sigma)
 
 
@@ -174,7 +176,8 @@ def select_points(image: np.ndarray, camera: PinholeCamera, plane: Plane, corner
 
 
 def require_points(points: LevelPoints, *, minimum: int, threshold: float) -> None:
-    """Raise TrackingError when a keyframe has too few observation points to estimate 6 DoF."""
+    """Raise TrackingError when ``points`` (a keyframe level's) are fewer than ``minimum``,
+    too few to estimate 6 DoF; the message names the gradient ``threshold`` they passed."""
     if len(points) < minimum:
         raise TrackingError(
             f"only {len(points)} observation points with gradient > {threshold:.3g} in the ground "
