@@ -189,3 +189,17 @@ def test_max_points_all_uses_every_pixel_above_the_threshold(tmp_path):
         counts[name] = len(load_model(tmp_path / f"{name}.npz")[2].levels[0].points)
     assert counts["default"] == 160 * 120 // 2  # one per 2 pixels: the texture has enough
     assert counts["all"] > 1.2 * counts["default"]
+
+
+def test_library_messages_get_their_flags_at_the_command_line():
+    """The library names a setting by its meaning, the CLI by its flag (cli.group.FLAG_WORDS):
+    each library wording is still in the library's code, outside the CLI, and becomes the
+    flag's."""
+    from monovo_cli.cli.group import FLAG_WORDS, with_flags
+
+    pkg = Path(__file__).resolve().parents[1] / "monovo_cli"
+    code = "".join(p.read_text() for p in pkg.rglob("*.py") if "cli" not in p.relative_to(pkg).parts)
+    for library, command_line in FLAG_WORDS:
+        assert library in code, library
+        assert "--" not in library and "--" in command_line
+        assert with_flags(f"x: {library}; y") == f"x: {command_line}; y"

@@ -117,7 +117,7 @@ def test_max_step_marks_large_steps_lost(drive):
     res = _track(drive, options=TrackOptions(max_step_m=0.01))
     statuses = [r.status for r in res[1:]]
     assert set(statuses) == {FrameStatus.LOST, FrameStatus.REINIT}
-    assert all("beyond --max-step 0.01 m" in r.reason for r in res[1:])
+    assert all("beyond the maximum step 0.01 m" in r.reason for r in res[1:])
     run = 0
     for s in statuses:  # never more than reinit_after lost frames in a row
         run = run + 1 if s == FrameStatus.LOST else 0

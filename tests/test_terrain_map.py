@@ -133,6 +133,13 @@ def test_a_keyframe_is_refined_against_its_successor_only_after_a_re_anchor(monk
     assert calls == [20, 20]
 
 
+def test_refine_is_the_sweep_or_nothing():
+    for refine in ("sweep", None):
+        assert TerrainMap(Plane(N0, 1.5), refine=refine).refine == refine
+    with pytest.raises(ValueError, match="refine"):
+        TerrainMap(Plane(N0, 1.5), refine="newton")  # the per-point refinement is gone
+
+
 def test_height_grid_by_hand():
     # looking straight down from 2 m (normal = optical axis): ground frame right = x,
     # forward = -y (image up), height = 2 - z
@@ -183,37 +190,6 @@ def test_track_terrain_out_on_a_plane_drive(tmp_path):
     assert img is not None and img.shape[0] > 400
     r = CliRunner().invoke(main, ["track", str(seq), "-o", "-", "--terrain-out"])
     assert r.exit_code == 2 and "--terrain-out" in r.output and "Traceback" not in r.output
-
-
-def test_depth_refinement_finds_the_ground_a_wrong_plane_missed():
-    """Two views of flat ground 0.4 m apart, exact poses; the keyframe's plane is 2 cm too
-    far. The 3 x 3 patches move the points that the images constrain (reported std < 1 cm,
-    31 % of them) to 0.48 cm RMS off the ground, from 2 cm (all points in view: 0.79 cm)."""
-    from monovo_cli.core.estimator.ground import select_points
-    from monovo_cli.geometry.lie import se3_inv
-    from monovo_cli.mapping.depth import refine_depths
-    from monovo_cli.synth.motion import camera_mount
-    from monovo_cli.synth.render import GroundRenderer, default_camera, finish_frame, ground_in_camera
-    from monovo_cli.synth.texture import GroundTexture, procedural_texture
-
-    cam = default_camera(256, 256)
-    mount = camera_mount(40.0)
-    g0 = mount
-    g1 = make_pose(np.eye(3), np.array([0.4, 0.05, 0.0])) @ mount
-    rng = np.random.default_rng(1)
-    ren = GroundRenderer(cam, GroundTexture(procedural_texture(512, 1), 1.2 / cam.fx), supersample=2)
-    img0, img1 = (finish_frame(ren.render(g), rng, 10.0).astype(np.float32) for g in (g0, g1))
-    n, d = ground_in_camera(g0)
-    wrong = Plane(n, d + 0.02)
-    corners = np.array(wrong.intersect(cam.rays(np.array([[0.0, 40], [255, 40], [255, 255], [0, 255]]))))
-    pts = select_points(img0, cam, wrong, corners, level=0, threshold=3.0, max_points=4000)
-    res = refine_depths(cam, wrong, pts.X, pts.intensity, img1, se3_inv(g1) @ g0, key_image=img0)
-    height = lambda X: X @ n - d  # noqa: E731 (off the true ground, m)
-    ok = res.measured & (res.std * (pts.X / pts.X[:, 2:3] @ n) < 0.01)
-    assert ok.mean() > 0.25
-    assert np.sqrt(np.mean(height(pts.X[ok]) ** 2)) == pytest.approx(0.02, abs=1e-6)
-    assert np.sqrt(np.mean(height(res.X[ok]) ** 2)) < 0.007
-    assert np.sqrt(np.mean(height(res.X[res.measured]) ** 2)) < 0.01
 
 
 def test_depth_sweep_puts_points_the_relief_misplaced_back_on_the_ground():

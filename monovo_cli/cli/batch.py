@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from monovo_cli.cli.group import BadInput, common, log_level, progress_bar
+from monovo_cli.cli.group import BadInput, common, log_level, progress_bar, with_flags
 from monovo_cli.cli.options import (
     LOOP,
     given,
@@ -95,8 +95,8 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
                 click.echo(f"{r['sequence']}:\n{r['traceback']}", err=True)
     if failed:
         first = failed[0]
-        msg = (f"{len(failed)} of {n} sequence(s) failed, first {first['sequence']}: "
-               f"{first['error']} (all in {s.summary_path})")
+        msg = with_flags(f"{len(failed)} of {n} sequence(s) failed, first {first['sequence']}: "
+                         f"{first['error']} (all in {s.summary_path})")
         if s.internal_errors:
             click.echo(f"Error: {msg}", err=True)
             raise click.exceptions.Exit(1)

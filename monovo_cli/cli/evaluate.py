@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from monovo_cli.cli.group import common
+from monovo_cli.cli.group import common, with_flags
 from monovo_cli.cli.options import LibraryDefault
 
 
@@ -50,4 +50,4 @@ def eval_(verbosity, estimate, groundtruth, align, max_dt, as_json):
 
         click.echo(json.dumps(ev.as_dict(), indent=2))
     else:
-        click.echo(format_report(ev))
+        click.echo(with_flags(format_report(ev)))

@@ -25,6 +25,26 @@ from monovo_cli.version import __version__
 
 log = logging.getLogger("monovo_cli")
 
+# The library names a setting by what it means (its messages serve any caller); the command
+# line names it by its flag. Each pair is (the library's words, the command line's words),
+# replaced in every library message a command shows (MonovoGroup, and monovo eval's report).
+FLAG_WORDS = (
+    ("lower the gradient threshold", "lower --threshold"),  # core.estimator.ground
+    ("max_dt sets the tolerance", "--max-dt sets the tolerance"),  # evaluation.sync
+    ("aligning them compares their shapes", "--align compares their shapes"),  # evaluation.report
+    ("allow overwriting or choose another output", "use --overwrite or another -o"),  # io.video
+    ("(a tracking run writes one with its terrain products)",  # io.terrain
+     "(written by 'monovo track SEQ -o DIR --terrain-out')"),
+)
+
+
+def with_flags(text: str) -> str:
+    """``text``, a library message, with the settings it names by their meaning named by their
+    command-line flags instead (:data:`FLAG_WORDS`)."""
+    for library, command_line in FLAG_WORDS:
+        text = text.replace(library, command_line)
+    return text
+
 
 class Terminated(BaseException):
     """SIGTERM arrived (a BaseException, like KeyboardInterrupt, so no ``except Exception``
@@ -43,12 +63,14 @@ class MonovoGroup(click.Group):
     """Turns library errors into one-line messages with the documented exit statuses."""
 
     def invoke(self, ctx: click.Context):
+        """Run the command; a MonovoError becomes one line with the flags put in (exit 2), an
+        environment OSError too, anything else an internal error (exit 1)."""
         try:
             return super().invoke(ctx)
         except MonovoError as exc:
             if _verbose(ctx):
                 log.exception("details")
-            raise BadInput(str(exc)) from None
+            raise BadInput(with_flags(str(exc))) from None
         except (click.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
         except KeyboardInterrupt:

@@ -33,7 +33,13 @@ from monovo_cli.image.pyramid import build_pyramid, num_levels
 
 @dataclass(frozen=True)
 class Keyframe:
-    """A ground model anchored on one frame: plane and points in that frame's camera."""
+    """A ground model anchored on one frame: plane and points in that frame's camera.
+
+    ``index`` the frame's index; ``world_from_key`` (4x4) its pose (world: camera 0's);
+    ``plane`` the ground in its camera; ``corners`` (4, 3) the model rectangle there (m);
+    ``levels`` the observation points per pyramid level, finest first; ``noise_sigma`` the
+    frame's noise and ``threshold`` the gradient threshold its points passed (grey levels).
+    """
 
     index: int
     world_from_key: np.ndarray

@@ -8,17 +8,19 @@ the accumulated motion), so drift grows per keyframe, not per frame. A new keyfr
 anchored on the current frame when too few of the keyframe's points stay in view or the
 model covers too little of the image; its plane is then the MAP of the plane carried by the
 motions, the normal measured from the two images and init.yaml's mounting prior
-(:mod:`monovo_cli.core.plane.tracker`). A frame whose
-estimate fails the divergence checks is marked ``lost``, carries the constant-velocity
-prediction, and the model is re-anchored on the next good frame (:class:`OdometryState`).
+(:mod:`monovo_cli.core.plane.tracker`). A frame whose estimate fails the divergence checks
+is marked ``lost``, carries the constant-velocity prediction (or the feature hypothesis'
+pose where the two disagree), and the model is re-anchored on the next good frame
+(:class:`OdometryState`). docs/algorithm.md section 4 gives the re-anchoring and loss rules,
+section 8 the capture, bridging and re-initialisation.
 
 The ground model itself is built by :mod:`monovo_cli.core.keyframe`; the settings are
 :class:`~monovo_cli.core.options.TrackOptions`.
 
 Long module: one state machine (prediction, capture, acceptance with the relief and the
 keyframe plane, re-anchoring, loss, re-initialisation) over one mutable state; its parts
-already live in their own modules (bridge, plane_tracker, relief, motion_covariance), and
-splitting the loop itself would pass that state around.
+already live in their own modules (recovery.bridge, plane.tracker, estimator.relief,
+plane.motion_covariance), and splitting the loop itself would pass that state around.
 """
 
 from __future__ import annotations
@@ -90,13 +92,21 @@ class OdometryState(Enum):
 
 
 class Odometry:
-    """Tracks a sequence frame by frame against keyframes (the paper's moved ground model)."""
+    """Tracks a sequence frame by frame against keyframes (the paper's moved ground model).
+
+    ``camera`` the frames' camera; ``plane`` the ground in camera 0 (init.yaml's, normal from
+    the camera to the ground, distance m); ``region`` ``(x0, y0, x1, y1)`` px, the image part
+    the ground model covers; ``mask`` (H, W), non-zero where pixels are usable;
+    ``first_keyframe`` a ground model built earlier (``monovo init``), else built from frame
+    0; ``sigma_distance`` (m), ``sigma_deg``: the mounting prior's width (init.yaml's ground
+    section; None: the defaults of :func:`~monovo_cli.core.plane.belief.default_sigmas`).
+    Call :meth:`start` with frame 0, then :meth:`step` (or :meth:`skip`) per frame.
+    """
 
     def __init__(self, camera: PinholeCamera, plane: Plane, region: tuple[int, int, int, int],
                  options: TrackOptions | None = None, *, mask: np.ndarray | None = None,
                  first_keyframe: Keyframe | None = None, sigma_distance: float | None = None,
                  sigma_deg: float | None = None) -> None:
-        """``sigma_distance`` (m), ``sigma_deg``: the mounting prior's width (init.yaml)."""
         self.camera = camera
         self.region = region
         self.options = options or TrackOptions()
@@ -124,10 +134,12 @@ class Odometry:
 
     @property
     def keyframe(self) -> Keyframe | None:
+        """The current keyframe (None before :meth:`start`)."""
         return self._key
 
     @property
     def state(self) -> OdometryState:
+        """Where the tracker stands between frames (:class:`OdometryState`)."""
         return self._state
 
     def start(self, index: int, timestamp: float, image: np.ndarray) -> FrameResult:
@@ -144,7 +156,8 @@ class Odometry:
     # -- one frame --------------------------------------------------------------------
     def step(self, index: int, timestamp: float, image: np.ndarray,
              prior_motion: np.ndarray | None = None) -> FrameResult:
-        """Estimate frame ``index``: status OK, REANCHORED, REINIT or LOST.
+        """Estimate frame ``index`` (``image`` (H, W) float32 grey levels, ``timestamp`` s):
+        its :class:`FrameResult`, status OK, REANCHORED, REINIT or LOST (with the reason).
 
         ``prior_motion`` (4x4, T_{k-1}_k, e.g. from wheel odometry) replaces the constant
         velocity as the initial guess.
@@ -260,7 +273,8 @@ class Odometry:
 
     def _lost(self, index: int, timestamp: float, reason: str,
               est: Estimate | None = None) -> FrameResult:
-        """The prediction, or the feature hypothesis where it contradicts it (core.bridge)."""
+        """The prediction, or the feature hypothesis where it contradicts it
+        (:mod:`monovo_cli.core.recovery.bridge`)."""
         cur_from_key = self._bridging.lost_pose(
             index, orthonormalize(self._velocity @ self._cur_from_key_prev))
         world_from_cur = orthonormalize(self._key.world_from_key @ se3_inv(cur_from_key))
@@ -317,10 +331,10 @@ class Odometry:
         world_from_cur = self._key.world_from_key @ se3_inv(cur_from_key)
         step = se3_inv(self._world_from_prev) @ world_from_cur
         if o.max_step_m is not None and np.linalg.norm(step[:3, 3]) > o.max_step_m:
-            return f"step beyond --max-step {o.max_step_m} m"
+            return f"step beyond the maximum step {o.max_step_m} m"
         if o.max_step_deg is not None and \
                 np.degrees(np.linalg.norm(so3_log(step[:3, :3]))) > o.max_step_deg:
-            return f"step beyond --max-step {o.max_step_deg} deg"
+            return f"step beyond the maximum step {o.max_step_deg} deg"
         return ""
 
     def _needs_reanchor(self, est: Estimate, key: Keyframe, cur_from_key: np.ndarray) -> bool:

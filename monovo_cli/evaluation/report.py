@@ -9,7 +9,8 @@ from monovo_cli.evaluation.metrics import Evaluation
 
 
 def format_report(ev: Evaluation) -> str:
-    """The paper-style tables (Tables 10.1 / 10.2) and the trajectory measures as text."""
+    """``ev`` as text: the paper-style tables (Tables 10.1 / 10.2, per-axis mean and std of
+    the relative-motion errors, m and deg) and the trajectory measures, one per line."""
     def g(x: float) -> str:
         return f"{x:.5f}" if abs(x) >= 1e-5 or x == 0 else f"{x:.3e}"
 
@@ -40,7 +41,7 @@ def format_report(ev: Evaluation) -> str:
         lines.append(f"  ATE RMSE, {what:<18}{ev.ate_rmse_aligned:.6f} m")
     elif ev.start_offset_m > 1e-6:
         lines.append(f"  (the trajectories start {ev.start_offset_m:.3g} m apart: another "
-                     "world frame? --align compares their shapes)")
+                     "world frame? aligning them compares their shapes)")
     pct = f"{ev.final_drift_pct:.3f} %" if math.isfinite(ev.final_drift_pct) else "n/a"
     rate = (f"{ev.rotation_drift_deg_per_m:.4f} deg/m"
             if math.isfinite(ev.rotation_drift_deg_per_m) else "n/a")

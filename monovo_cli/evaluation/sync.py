@@ -30,7 +30,7 @@ def _span(ts: np.ndarray) -> str:
 
 def match_timestamps(ts_est: np.ndarray, ts_gt: np.ndarray, *, max_dt: float | None = None,
                      names: tuple[str, str] = ("estimate", "ground truth"),
-                     hint: str = "--max-dt sets the tolerance"
+                     hint: str = "max_dt sets the tolerance"
                      ) -> tuple[np.ndarray, np.ndarray]:
     """Index arrays ``(i_est, i_gt)`` pairing each estimated pose with the true pose nearest
     in time, within ``max_dt`` s (None: :func:`default_max_dt`), in the estimate's time order.

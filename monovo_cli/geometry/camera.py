@@ -32,6 +32,7 @@ class PinholeCamera:
 
     @property
     def has_distortion(self) -> bool:
+        """Whether any lens distortion coefficient is non-zero."""
         return any(abs(c) > 0.0 for c in self.distortion)
 
     def scaled(self, level: int) -> PinholeCamera:

@@ -8,7 +8,8 @@ import numpy as np
 
 
 def sobel_gradient(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Sobel derivatives (gx, gy) of a float32 image, in grey levels per pixel."""
+    """Sobel derivatives ``(gx, gy)``, each (H, W) float32 in grey levels per pixel, of the
+    float32 ``image`` (H, W) (3x3 kernel scaled by 1/8, borders replicated)."""
     gx = cv2.Sobel(image, cv2.CV_32F, 1, 0, ksize=3, scale=0.125, borderType=cv2.BORDER_REPLICATE)
     gy = cv2.Sobel(image, cv2.CV_32F, 0, 1, ksize=3, scale=0.125, borderType=cv2.BORDER_REPLICATE)
     return gx, gy

@@ -11,7 +11,8 @@ import numpy as np
 
 
 def num_levels(width: int, height: int, *, min_size: int = 32, max_levels: int = 6) -> int:
-    """How many levels until the smaller side would drop below ``min_size`` px."""
+    """How many pyramid levels a ``width`` x ``height`` px image gets: halving until the
+    smaller side would drop below ``min_size`` px, at most ``max_levels`` (level 0 counted)."""
     n, w, h = 1, width, height
     while n < max_levels and min((w + 1) // 2, (h + 1) // 2) >= min_size:
         w, h = (w + 1) // 2, (h + 1) // 2

@@ -18,9 +18,10 @@ INTERPOLATION = {"linear": cv2.INTER_LINEAR, "cubic": cv2.INTER_CUBIC, "lanczos4
 # (OUTSIDE times the kernel's absolute weights stays below float32's largest value.) A NaN
 # border would say the same, but OpenCV 5's bicubic remap spreads a NaN border to
 # neighbouring outputs; checking the positions against the kernel's reach is a second pass
-# over the grid, 40-60 % of the remap's own time. OpenCV's Lanczos-4 remap does not keep a
-# constant border apart (it returns wrong values beside it), so its validity comes from the
-# positions: the kernel's reach, px left/up and right/down of the sample's cell.
+# over the grid, a large share of the remap's own time (docs/algorithm.md section 3,
+# "Interpolation"). OpenCV's Lanczos-4 remap does not keep a constant border apart (it
+# returns wrong values beside it), so its validity comes from the positions: the kernel's
+# reach, px left/up and right/down of the sample's cell.
 OUTSIDE = 1e37
 _VALID_BELOW = 1e12  # |sample| below this: no pixel outside the image was weighted
 _REACH = {cv2.INTER_LANCZOS4: (3, 4)}

@@ -53,6 +53,8 @@ class MotionRow:
     reason: str = ""  # why the frame is lost or reinit; one line, no commas or quotes
 
     def fields(self, with_std: bool, with_reason: bool = False) -> list[str]:
+        """The row's motion.csv fields (strings): translation m, rotation vector deg, then the
+        std columns (m, deg; empty where not finite) and the reason if asked for."""
         t = self.prev_from_cur[:3, 3]
         r = np.degrees(so3_log(self.prev_from_cur[:3, :3]))
         out = [str(self.frame), *(fmt(v) for v in t), *(fmt(v) for v in r), fmt(self.msd),
@@ -79,6 +81,7 @@ class MotionWriter:
         self._stream.flush()
 
     def write(self, row: MotionRow) -> None:
+        """One row, flushed."""
         self._stream.write(",".join(row.fields(self._with_std, self._with_reason)) + "\n")
         self._stream.flush()
 
@@ -106,6 +109,7 @@ class CovarianceWriter:
         self._stream.flush()
 
     def close(self) -> None:
+        """Close the stream (the rows are already flushed)."""
         self._stream.close()
 
 
@@ -131,6 +135,7 @@ def tum_text(timestamps: Sequence[float], world_from_cam: Sequence[np.ndarray]) 
 
 
 def motion_csv_text(rows: Iterable[MotionRow], *, with_std: bool = False) -> str:
+    """motion.csv content of ``rows``, header first, as :class:`MotionWriter` streams it."""
     buf = io.StringIO()
     w = MotionWriter(buf, with_std=with_std)
     for r in rows:
@@ -138,7 +143,9 @@ def motion_csv_text(rows: Iterable[MotionRow], *, with_std: bool = False) -> str
     return buf.getvalue()
 
 
-def _floats(fields: Sequence[str], path: Path, lineno: int) -> list[float]:
+def floats(fields: Sequence[str], path: Path, lineno: int) -> list[float]:
+    """The ``fields`` (strings) of line ``lineno`` of ``path`` as finite floats; InputError
+    naming the file and line when one is not a number or not finite."""
     try:
         vals = [float(v) for v in fields]
     except ValueError:
@@ -185,7 +192,7 @@ def read_tum(path: Path) -> tuple[np.ndarray, np.ndarray]:
         if len(f) != 8:
             raise InputError(f"{path}: line {i}: expected 8 numbers "
                              f"(timestamp tx ty tz qx qy qz qw), got {len(f)}")
-        v = _floats(f, path, i)
+        v = floats(f, path, i)
         R = _quat_rotation(v[4:8], path, i)
         ts.append(v[0])
         poses.append(make_pose(R, np.array(v[1:4])))
@@ -194,9 +201,12 @@ def read_tum(path: Path) -> tuple[np.ndarray, np.ndarray]:
     return np.array(ts), np.array(poses)
 
 
-def _csv_rows(path: Path, what: str, columns: Sequence[str]) -> list[tuple[int, list[str]]]:
-    """The non-empty data rows of a CSV whose header starts with ``columns``, with line numbers;
-    each row has at least ``len(columns)`` fields."""
+def csv_rows(path: Path, what: str, columns: Sequence[str]) -> list[tuple[int, list[str]]]:
+    """The non-empty data rows of the CSV file ``path`` as ``(line number, fields)``, after
+    a header that must start with ``columns``; each row has at least ``len(columns)`` fields
+    (strings, not yet numbers: :func:`floats`). InputError naming the file (and ``what`` it
+    should be, e.g. "motion CSV") when it cannot be read, the header differs or a row is
+    short."""
     try:
         with open(path, newline="") as f:
             rows = list(csv.reader(f))
@@ -226,8 +236,8 @@ def read_motion_csv(path: Path) -> tuple[np.ndarray, np.ndarray, list[str]]:
     (N, 4, 4) and statuses (N strings; "ok" where the file has no status column)."""
     path = Path(path)
     frames, poses, statuses = [], [], []
-    for i, r in _csv_rows(path, "motion CSV", MOTION_COLUMNS[:7]):
-        v = _floats(r[:7], path, i)
+    for i, r in csv_rows(path, "motion CSV", MOTION_COLUMNS[:7]):
+        v = floats(r[:7], path, i)
         frames.append(_frame_number(v[0], r[0], path, i))
         if max(abs(x) for x in v[4:7]) > MAX_ROTVEC_DEG:
             raise InputError(f"{path}: line {i}: rotation vector ({', '.join(r[4:7])}) is not "
@@ -242,8 +252,8 @@ def read_trajectory_csv(path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]
     ``world_from_cam`` poses (N, 4, 4). Frames must be distinct whole numbers."""
     path = Path(path)
     frames, ts, poses = [], [], []
-    for i, r in _csv_rows(path, "trajectory CSV", TRAJECTORY_COLUMNS):
-        v = _floats(r[:9], path, i)
+    for i, r in csv_rows(path, "trajectory CSV", TRAJECTORY_COLUMNS):
+        v = floats(r[:9], path, i)
         _frame_number(v[0], r[0], path, i)
         R = _quat_rotation(v[5:9], path, i)
         frames.append(int(v[0]))
@@ -261,7 +271,7 @@ def read_motion_stats(path: Path) -> dict[int, tuple[str, float]]:
     """``{frame: (status, msd)}`` from a motion.csv (the documented columns first)."""
     path = Path(path)
     out: dict[int, tuple[str, float]] = {}
-    for i, r in _csv_rows(path, "motion CSV", MOTION_COLUMNS):
-        frame, msd = _floats([r[0], r[7]], path, i)
+    for i, r in csv_rows(path, "motion CSV", MOTION_COLUMNS):
+        frame, msd = floats([r[0], r[7]], path, i)
         out[_frame_number(frame, r[0], path, i)] = (r[10].strip(), msd)
     return out

@@ -19,7 +19,7 @@ import numpy as np
 
 from monovo_cli.errors import InputError
 from monovo_cli.io.atomic import atomic_write_bytes, atomic_write_text
-from monovo_cli.io.formats import _csv_rows, _floats
+from monovo_cli.io.formats import csv_rows, floats
 from monovo_cli.mapping.terrain_map import HeightGrid
 
 HEIGHTMAP_HEADER = "right_m,forward_m,height_m,points,x_m,y_m,z_m"
@@ -54,6 +54,8 @@ def read_ply(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 
 def write_ply(path: Path, X: np.ndarray, intensity: np.ndarray) -> None:
+    """Write :func:`ply_bytes` of points ``X`` (N, 3) m and ``intensity`` (N,) to ``path``,
+    atomically."""
     atomic_write_bytes(Path(path), ply_bytes(X, intensity))
 
 
@@ -72,6 +74,7 @@ def heightmap_csv_text(grid: HeightGrid, ground_from_world: np.ndarray) -> str:
 
 
 def write_heightmap_csv(path: Path, grid: HeightGrid, ground_from_world: np.ndarray) -> None:
+    """Write :func:`heightmap_csv_text` to ``path``, atomically."""
     atomic_write_text(Path(path), heightmap_csv_text(grid, ground_from_world))
 
 
@@ -93,11 +96,11 @@ def read_heightmap(path: Path) -> tuple[HeightGrid, np.ndarray]:
     path = Path(path)
     if path.is_dir():
         if not (path / HEIGHTMAP_NAME).is_file():
-            raise InputError(f"{path}: no {HEIGHTMAP_NAME} in this directory (written by "
-                             "'monovo track SEQ -o DIR --terrain-out')")
+            raise InputError(f"{path}: no {HEIGHTMAP_NAME} in this directory "
+                             "(a tracking run writes one with its terrain products)")
         path = path / HEIGHTMAP_NAME
-    rows = _csv_rows(path, "height map", HEIGHTMAP_HEADER.split(","))
-    vals = np.array([_floats(r[:7], path, i) for i, r in rows]).reshape(-1, 7)
+    rows = csv_rows(path, "height map", HEIGHTMAP_HEADER.split(","))
+    vals = np.array([floats(r[:7], path, i) for i, r in rows]).reshape(-1, 7)
     if len(vals) < 3:
         raise InputError(f"{path}: {len(vals)} cells; a height map needs at least 3")
     G, W = vals[:, :3], vals[:, 4:7]

@@ -61,7 +61,7 @@ def pad_to_even(image: np.ndarray) -> np.ndarray:
 def _check_target(path: Path, overwrite: bool) -> None:
     if path.exists() and not overwrite:
         if not (path.is_dir() and not any(path.iterdir())):
-            raise OutputError(f"{path}: already exists; use --overwrite or another -o")
+            raise OutputError(f"{path}: already exists; allow overwriting or choose another output")
     parent = path.parent
     if not parent.is_dir():
         raise OutputError(f"{parent}: no such directory")

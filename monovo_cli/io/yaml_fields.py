@@ -118,6 +118,7 @@ class UniqueKeyLoader(yaml.SafeLoader):
     """SafeLoader that rejects a key given twice in one mapping."""
 
     def construct_mapping(self, node, deep=False):
+        """SafeLoader's mapping of ``node``; ConstructorError for a key given twice."""
         if isinstance(node, yaml.MappingNode):
             seen = set()
             for key_node, _ in node.value:

@@ -1,4 +1,5 @@
-"""What tracking learned of the ground: the keyframes' observation points in the world frame.
+"""What tracking learned of the ground: the keyframes' observation points in the world frame
+(docs/algorithm.md section 9, "The terrain products").
 
 Every keyframe's finest-level observation points (keyframe camera, on its plane) are moved
 into the world frame (camera 0's) with the keyframe's pose; a keyframe rebuilt in place (the
@@ -13,23 +14,21 @@ keyframe planes, with the filter's own covariances, process noise and innovation
 (:class:`~monovo_cli.core.plane.belief.PlaneLink`); a point keeps its height off the plane
 (its relief) and moves along its ray, and goes into the world frame with its keyframe's
 pose re-scaled with the smoothed planes, as trajectory.csv has it
-(:mod:`monovo_cli.mapping.hindsight`); motion.csv stays the filter's, as streamed. (On the
-rolling terrain drive the first keyframes' points sit 4.4 and 3.8 cm low without it: a
-diagnostic run.)
+(:mod:`monovo_cli.mapping.hindsight`); motion.csv stays the filter's, as streamed. Without
+it the map's error sits in the first keyframes.
 
 **What the relief misses.** When a keyframe is left, its points are searched along their
 rays against its successor's image (or the last frame's) at the successor's pose
 (``refine="sweep"``, the default: :func:`~monovo_cli.mapping.depth.sweep_depths`): a point
 whose patch clearly matches at another height (a rock the 0.4 m relief does not see) moves
-there; the rest stay on the relief. ``refine="newton"`` is the Gauss-Newton per-point
-refinement under a prior toward the relief (:func:`~monovo_cli.mapping.depth.refine_depths`;
-noisier over whole drives, docs/algorithm.md section "The terrain products"), None keeps
-every point where tracking put it. Heights are measured
-in the **ground frame** of the first keyframe's smoothed plane (frame 0's ground as tracking
-measured it: init.yaml's plane, or the tilt the first frames corrected it to, smoothed): origin at
-the foot of camera 0 on the plane, ``forward`` camera 0's optical axis projected onto it,
-``right = normal x forward``, ``up = -normal`` (heights above the plane, m), the axes of
-``trajectory.png``.
+there; the rest stay on the relief. ``refine=None`` keeps every point where tracking put
+it.
+
+**The ground frame.** Heights are measured in the ground frame of the first keyframe's
+smoothed plane (frame 0's ground as tracking measured it: init.yaml's plane, or the tilt the
+first frames corrected it to, smoothed): origin at the foot of camera 0 on the plane,
+``forward`` camera 0's optical axis projected onto it, ``right = normal x forward``,
+``up = -normal`` (heights above the plane, m), the axes of ``trajectory.png``.
 :meth:`TerrainMap.height_grid` bins the points into square cells of the driven strip: a
 cell's height is the mean of its points'.
 
@@ -46,7 +45,7 @@ from monovo_cli.core.keyframe import Keyframe
 from monovo_cli.core.plane.belief import PlaneLink
 from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.geometry.plane import Plane
-from monovo_cli.mapping.depth import refine_depths, sweep_depths
+from monovo_cli.mapping.depth import sweep_depths
 from monovo_cli.mapping.hindsight import SmoothedDrive
 
 POINTS_PER_KEYFRAME = 10000  # at most this many of a keyframe's points (every k-th) are kept
@@ -96,12 +95,22 @@ class _Chunk:
 
 
 class TerrainMap:
-    """The keyframes' observation points in the world frame (module docstring)."""
+    """The keyframes' observation points in the world frame (module docstring).
+
+    ``plane``: init.yaml's ground in camera 0 (the ground frame until a keyframe comes); at
+    most ``points_per_keyframe`` of a keyframe's finest points are kept (every k-th);
+    ``refine``: ``"sweep"`` (:func:`~monovo_cli.mapping.depth.sweep_depths`) or None.
+    Feed it with :meth:`add` per keyframe and :meth:`finish` with the last frame; the
+    queries place the points on the keyframe planes and poses of a
+    :class:`~monovo_cli.mapping.hindsight.SmoothedDrive` when given one, else as tracked.
+    """
 
     def __init__(self, plane: Plane, points_per_keyframe: int = POINTS_PER_KEYFRAME, *,
                  refine: str | None = "sweep") -> None:
         self.plane0 = plane  # (init.yaml's: the ground frame until a keyframe comes)
         self.points_per_keyframe = int(points_per_keyframe)
+        if refine not in ("sweep", None):
+            raise ValueError(f"refine: expected 'sweep' or None, got {refine!r}")
         self.refine = refine
         self._chunks: dict[int, _Chunk] = {}
         self._last: Keyframe | None = None
@@ -165,18 +174,11 @@ class TerrainMap:
 
     def _refine(self, key: Keyframe, image: np.ndarray, cur_from_key: np.ndarray) -> None:
         pts = key.levels[0].points
-        if self.refine is None or pts.camera.has_distortion or \
-                (self.refine == "sweep" and self._last_image is None) or \
+        if self.refine is None or pts.camera.has_distortion or self._last_image is None or \
                 float(np.linalg.norm(cur_from_key[:3, 3])) < 1e-3 * key.plane.distance:
             return  # (no baseline: the images cannot tell depths apart)
-        step = self._step(key)
-        if self.refine == "sweep":
-            X, moved = sweep_depths(pts.camera, key.plane, pts.X[::step], self._last_image,
-                                    image, cur_from_key)
-        else:
-            d = refine_depths(pts.camera, key.plane, pts.X[::step], pts.intensity[::step],
-                              image, cur_from_key, key_image=self._last_image)
-            X, moved = d.X, d.measured
+        X, moved = sweep_depths(pts.camera, key.plane, pts.X[::self._step(key)],
+                                self._last_image, image, cur_from_key)
         self._store(key, X)
         self.refined += int(np.count_nonzero(moved))
 

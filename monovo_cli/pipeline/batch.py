@@ -36,12 +36,12 @@ from monovo_cli.pipeline.batch_job import (
     THREAD_VARIABLES,
     JobOptions,
     _job_options,
-    _result,
     available_cores,
     done_result,
     find_sequences,
     is_complete,
     limit_threads,
+    result,
     sequence_name,
     track_one,
 )
@@ -90,8 +90,8 @@ def _pool_task(task: Callable[..., dict], seq_dir: str, out_dir: str, options: J
 
 
 def _lost(job: _Job, why: str) -> dict[str, Any]:
-    return _result(job.seq_dir, job.out_dir, error=f"internal error: {why}", error_kind="internal",
-                   worker="")
+    return result(job.seq_dir, job.out_dir, error=f"internal error: {why}", error_kind="internal",
+                  worker="")
 
 
 def _terminate(executor: ProcessPoolExecutor) -> None:
@@ -261,14 +261,17 @@ class BatchSummary:
     workers: int | None = None
 
     def count(self, status: str) -> int:
+        """How many sequences ended with ``status``."""
         return sum(r["status"] == status for r in self.results)
 
     @property
     def failed(self) -> list[dict[str, Any]]:
+        """The results of the sequences that failed, in order."""
         return [r for r in self.results if r["status"] == "failed"]
 
     @property
     def internal_errors(self) -> list[dict[str, Any]]:
+        """The failures that were not bad input (internal errors, lost frames, lost workers)."""
         return [r for r in self.failed if r.get("error_kind") != "input"]
 
 
@@ -334,7 +337,7 @@ def run_batch(root: str | Path, out_root: str | Path, options: JobOptions | None
     for i, rel in enumerate(rels):
         seq_dir, out_dir = (root / rel).resolve(), (out_root / rel).resolve()
         name = sequence_name(rel)
-        res = _result(seq_dir, out_dir, status="pending", worker="")
+        res = result(seq_dir, out_dir, status="pending", worker="")
         if resume:
             complete, why = is_complete(seq_dir, out_dir, opts)
             if complete:

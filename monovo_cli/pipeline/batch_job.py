@@ -210,7 +210,10 @@ def _input_fingerprint(seq_dir: Path, prior: str | None,
     return n_frames, h.hexdigest()
 
 
-def _result(seq_dir: Path, out_dir: Path, **fields: Any) -> dict[str, Any]:
+def result(seq_dir: Path, out_dir: Path, **fields: Any) -> dict[str, Any]:
+    """The result dict of one sequence of a batch (the row of ``summary.csv``): every key,
+    ``status`` "failed" and the others None or empty unless ``fields`` gives them, and the
+    ``worker`` (host:pid) that made it."""
     base = {"sequence": str(seq_dir), "out_dir": str(out_dir), "status": "failed", "frames": None,
             "fps": None, "mean_msd": None, "lost": None, "reanchored": None, "distance_m": None,
             "seconds": None, "error": "", "error_kind": "",
@@ -274,18 +277,18 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: JobOptions | No
 
         atomic_write_text(done, json.dumps(marker, indent=1, sort_keys=True) + "\n")
         if run.mostly_lost:  # outputs kept, as monovo track's exit status 3
-            return _result(seq_dir, out_dir, error=f"{run.lost} of {run.frames - 1} "
-                           "frames lost (more than half)", error_kind="lost", **stats)
-        return _result(seq_dir, out_dir, status="ok", **stats)
+            return result(seq_dir, out_dir, error=f"{run.lost} of {run.frames - 1} "
+                          "frames lost (more than half)", error_kind="lost", **stats)
+        return result(seq_dir, out_dir, status="ok", **stats)
     except MonovoError as exc:
         log.debug("%s failed", seq_dir, exc_info=True)
-        return _result(seq_dir, out_dir, error=str(exc), error_kind="input",
-                       seconds=time.perf_counter() - t0)
+        return result(seq_dir, out_dir, error=str(exc), error_kind="input",
+                      seconds=time.perf_counter() - t0)
     except Exception as exc:
         log.debug("%s failed", seq_dir, exc_info=True)
-        return _result(seq_dir, out_dir, error=f"internal error: {type(exc).__name__}: {exc}",
-                       error_kind="internal", traceback=traceback.format_exc(),
-                       seconds=time.perf_counter() - t0)
+        return result(seq_dir, out_dir, error=f"internal error: {type(exc).__name__}: {exc}",
+                      error_kind="internal", traceback=traceback.format_exc(),
+                      seconds=time.perf_counter() - t0)
 
 
 def is_complete(seq_dir: str | Path, out_dir: str | Path,
@@ -332,4 +335,4 @@ def is_complete(seq_dir: str | Path, out_dir: str | Path,
 def done_result(seq_dir: Path, out_dir: Path) -> dict[str, Any]:
     """The result dict of a complete sequence (status ``skipped``), from its ``done.json``."""
     stats = json.loads((Path(out_dir) / DONE_FILE).read_text())["result"]
-    return _result(seq_dir, out_dir, status="skipped", worker="", **stats)
+    return result(seq_dir, out_dir, status="skipped", worker="", **stats)

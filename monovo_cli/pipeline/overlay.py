@@ -26,6 +26,9 @@ log = logging.getLogger(__name__)
 
 @dataclass(frozen=True)
 class OverlaySummary:
+    """What :func:`overlay_sequence` wrote: ``frames`` rendered to ``out`` (``kind`` mp4, gif
+    or png) in ``seconds``, with ``triangles`` triangles placed."""
+
     frames: int
     out: Path
     kind: str

@@ -11,7 +11,7 @@ import numpy as np
 from monovo_cli.errors import InputError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import make_pose, pose_from_vectors, so3_exp
-from monovo_cli.synth.render import REGION_MIN_DEPRESSION_DEG, _corner_depressions
+from monovo_cli.synth.render import REGION_MIN_DEPRESSION_DEG, corner_depressions
 
 DRIVE_MAST_HEIGHT = 1.5  # m
 DRIVE_PITCH_DEG = 45.0  # optical axis below the horizontal
@@ -31,9 +31,11 @@ PAIR_MAX_DRAWS = 1000
 # --------------------------------------------------------------------------- motion
 
 
-def _smooth(rng: np.random.Generator, n: int, periods: tuple[float, float], *, count: int = 3,
-            zero_start: bool = False) -> np.ndarray:
-    """A smooth random signal in [-1, 1] over frames 0..n-1 (sum of sinusoids)."""
+def smooth(rng: np.random.Generator, n: int, periods: tuple[float, float], *, count: int = 3,
+           zero_start: bool = False) -> np.ndarray:
+    """(n,) a smooth random signal in [-1, 1] over frames 0..n-1: ``count`` sinusoids with
+    periods (frames) drawn from ``periods`` and weights summing to 1, exactly 0 at frame 0
+    with ``zero_start``. Deterministic in ``rng``."""
     k = np.arange(n, dtype=float)
     omega = 2.0 * np.pi / rng.uniform(periods[0], periods[1], count)
     amp = rng.uniform(0.5, 1.0, count)
@@ -78,15 +80,15 @@ def drive_poses(n_frames: int, rng: np.random.Generator, *, peak_step: float,
     1 deg/frame about the ground normal, +-1 deg roll/pitch and +-2 cm height wobble.
     Frame 0 is exactly on the nominal mast pose."""
     speed = (peak_step / (1.0 + DRIVE_SPEED_VARIATION)) * (
-        1.0 + DRIVE_SPEED_VARIATION * _smooth(rng, n_frames, (40.0, 250.0)))
+        1.0 + DRIVE_SPEED_VARIATION * smooth(rng, n_frames, (40.0, 250.0)))
     bias = rng.uniform(-1.0, 1.0)
     yaw_rate = math.radians(DRIVE_MAX_YAW_RATE_DEG) * (
-        0.4 * bias + 0.6 * _smooth(rng, n_frames, (60.0, 400.0)))
-    roll = math.radians(DRIVE_WOBBLE_DEG) * _smooth(rng, n_frames, (15.0, 60.0), zero_start=True)
-    pitch = math.radians(DRIVE_WOBBLE_DEG) * _smooth(rng, n_frames, (15.0, 60.0),
-                                                     zero_start=True)
-    height = DRIVE_MAST_HEIGHT + DRIVE_HEIGHT_WOBBLE * _smooth(rng, n_frames, (20.0, 80.0),
-                                                               zero_start=True)
+        0.4 * bias + 0.6 * smooth(rng, n_frames, (60.0, 400.0)))
+    roll = math.radians(DRIVE_WOBBLE_DEG) * smooth(rng, n_frames, (15.0, 60.0), zero_start=True)
+    pitch = math.radians(DRIVE_WOBBLE_DEG) * smooth(rng, n_frames, (15.0, 60.0),
+                                                    zero_start=True)
+    height = DRIVE_MAST_HEIGHT + DRIVE_HEIGHT_WOBBLE * smooth(rng, n_frames, (20.0, 80.0),
+                                                              zero_start=True)
     heading = rng.uniform(0.0, 2.0 * np.pi)
     R_body_cam = body_from_camera(math.radians(DRIVE_PITCH_DEG))
     pos = np.array(origin, dtype=float)
@@ -119,7 +121,7 @@ def pair_poses(cam: PinholeCamera, rng: np.random.Generator, *, max_translation:
         t = rng.uniform(-max_translation, max_translation, 3)
         r = np.radians(rng.uniform(-max_rotation_deg, max_rotation_deg, 3))
         g1 = g0 @ pose_from_vectors(t, r)
-        if g1[2, 3] > 0.05 * PAIR_DISTANCE and np.all(_corner_depressions(cam, g1) >= margin):
+        if g1[2, 3] > 0.05 * PAIR_DISTANCE and np.all(corner_depressions(cam, g1) >= margin):
             return g0, g1
     raise InputError(f"max_rotation_deg {max_rotation_deg:g}, max_translation {max_translation:g}: "
                      "motions this large keep showing the horizon in frame 1")
@@ -127,7 +129,7 @@ def pair_poses(cam: PinholeCamera, rng: np.random.Generator, *, max_translation:
 
 # --------------------------------------------------------------------------- rover drives over terrain
 
-TERRAIN_PITCH_DEG = 40.0  # camera pitch of the terrain drives (issue 14.2)
+TERRAIN_PITCH_DEG = 40.0  # camera pitch of the terrain drives (benchmarks/terrain.py)
 ROVER_WHEELBASE = 1.4  # m, front to rear wheel contacts (a MER-sized rover)
 ROVER_TRACK = 1.2  # m, left to right wheel contacts
 ROVER_MAST_FORWARD = 0.4  # m, the mast ahead of the rover's centre (the turning centre)
@@ -149,10 +151,10 @@ def drive_path(n_frames: int, rng: np.random.Generator, *, peak_step: float,
     """``(n, 3)`` rover centre ``x, y`` (m, in G) and heading (rad from G's x axis) of a
     smooth drive: the speed and turns of :func:`drive_poses`, without the body's wobble."""
     speed = (peak_step / (1.0 + DRIVE_SPEED_VARIATION)) * (
-        1.0 + DRIVE_SPEED_VARIATION * _smooth(rng, n_frames, (40.0, 250.0)))
+        1.0 + DRIVE_SPEED_VARIATION * smooth(rng, n_frames, (40.0, 250.0)))
     bias = rng.uniform(-1.0, 1.0)
     yaw_rate = math.radians(DRIVE_MAX_YAW_RATE_DEG) * (
-        0.4 * bias + 0.6 * _smooth(rng, n_frames, (60.0, 400.0)))
+        0.4 * bias + 0.6 * smooth(rng, n_frames, (60.0, 400.0)))
     heading = rng.uniform(0.0, 2.0 * np.pi)
     pos = np.array(origin, dtype=float)
     path = np.zeros((n_frames, 3))

@@ -52,7 +52,8 @@ def supersample_matrix(s: int) -> np.ndarray:
     return np.array([[s, 0.0, c], [0.0, s, c], [0.0, 0.0, 1.0]])
 
 
-def _grid(width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+def grid(width: int, height: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(x, y)``, each (height, width) float: every pixel's column and row (``np.meshgrid``)."""
     return np.meshgrid(np.arange(width, dtype=float), np.arange(height, dtype=float))
 
 
@@ -90,7 +91,7 @@ def ground_region(cam: PinholeCamera, g_from_cam: np.ndarray,
                   min_depression_deg: float = REGION_MIN_DEPRESSION_DEG) -> list[int] | None:
     """``[x0, y0, x1, y1]`` (x1, y1 exclusive): the full-width band of rows whose every pixel
     sees the ground at least ``min_depression_deg`` below the horizon; None if there is none."""
-    x, y = _grid(cam.width, cam.height)
+    x, y = grid(cam.width, cam.height)
     ok = ray_depression(cam, g_from_cam, x, y) >= math.radians(min_depression_deg)
     rows_ok = ok.all(axis=1)
     if not rows_ok[-1]:
@@ -100,7 +101,9 @@ def ground_region(cam: PinholeCamera, g_from_cam: np.ndarray,
     return [0, y0, cam.width, cam.height]
 
 
-def _corner_depressions(cam: PinholeCamera, g_from_cam: np.ndarray) -> np.ndarray:
+def corner_depressions(cam: PinholeCamera, g_from_cam: np.ndarray) -> np.ndarray:
+    """(4,) :func:`ray_depression` of the rays through the image's outer corners (top left,
+    top right, bottom left, bottom right) for the camera at ``g_from_cam`` (4x4)."""
     x = np.array([-0.5, cam.width - 0.5, -0.5, cam.width - 0.5])
     y = np.array([-0.5, -0.5, cam.height - 0.5, cam.height - 0.5])
     return ray_depression(cam, g_from_cam, x, y)
@@ -120,7 +123,7 @@ class GroundRenderer:
         self.s = int(supersample)
         self.sky = float(sky)
         W, H, s = cam.width, cam.height, self.s
-        self._x, self._y = _grid(W, H)
+        self._x, self._y = grid(W, H)
         shape = (H * s, W * s)
         self._lam_s = np.empty(shape, np.float32)
         self._w = np.empty(shape, np.float32)
@@ -180,7 +183,7 @@ class GroundRenderer:
             np.add(out[r0:r1], layer, out=out[r0:r1])
 
         # Sky: supersamples whose ray misses the plane (the horizon is a line, corners tell).
-        if np.any(_corner_depressions(cam, g_from_cam) <= 0.0):
+        if np.any(corner_depressions(cam, g_from_cam) <= 0.0):
             nrm, _ = ground_in_camera(g_from_cam)
             xs = (np.arange(sw, dtype=np.float64) + 0.5) / s - 0.5
             ys = (np.arange(sh, dtype=np.float64) + 0.5) / s - 0.5

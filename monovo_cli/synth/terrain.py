@@ -11,9 +11,9 @@ G has z up and metres as units. The surface is ``z = max(base(x, y), rock tops)`
   the surface over a rock is the higher of the base and the ellipsoid's upper half. Rocks
   occlude whatever lies behind them.
 
-The four kinds of ``--terrain`` (measured drives of the issue): ``flat`` (z = 0), ``rolling``
-(+-5 cm swell over 2-5 m wavelengths), ``slope`` (a 6 deg slope and a +-3 cm swell), ``rocks``
-(flat ground and scattered rocks a few cm to ~20 cm high).
+The four kinds of ``terrain`` (the drives of ``benchmarks/terrain.py``): ``flat`` (z = 0),
+``rolling`` (+-5 cm swell over 2-5 m wavelengths), ``slope`` (a 6 deg slope and a +-3 cm
+swell), ``rocks`` (flat ground and scattered rocks a few cm to ~20 cm high).
 """
 
 from __future__ import annotations
@@ -62,6 +62,7 @@ class Rocks:
 
     @staticmethod
     def none() -> Rocks:
+        """No rocks."""
         return Rocks(np.zeros((0, 3)), np.ones((0, 3)), np.zeros(0), np.ones(0))
 
     def tops(self, x: np.ndarray, y: np.ndarray, indices: np.ndarray) -> np.ndarray:
@@ -94,6 +95,7 @@ class Terrain:
 
     @property
     def period(self) -> float:
+        """The swell's period (m) in x and y."""
         return self.swell.shape[0] * self.spacing
 
     def swell_range(self) -> tuple[float, float]:

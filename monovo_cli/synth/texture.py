@@ -39,6 +39,7 @@ class GroundTexture:
 
     @property
     def shape(self) -> tuple[int, int]:
+        """``(rows, columns)`` of texels at level 0."""
         return self.levels[0].shape  # type: ignore[return-value]
 
     def plane_from_texel(self, level: int = 0) -> np.ndarray:

@@ -68,18 +68,18 @@ from monovo_cli.synth.motion import (
     PAIR_EXTRA_TILT_DEG,
     PAIR_MAX_TRANSLATION,
     PAIR_TILT_DEG,
-    _smooth,
     body_from_camera,
     drive_poses,
     pair_poses,
+    smooth,
 )
 from monovo_cli.synth.raycast import TERRAIN_SUPERSAMPLE, TerrainRenderer
 from monovo_cli.synth.render import (
     SUPERSAMPLE,
     GroundRenderer,
-    _grid,
     default_camera,
     finish_frame,
+    grid,
     ground_in_camera,
     ground_region,
     pixel_size_on_plane,
@@ -112,6 +112,8 @@ EXPOSURE_BIAS = 15.0  # grey levels
 
 @dataclass(frozen=True)
 class SynthSummary:
+    """What :func:`synthesize` wrote."""
+
     out_dir: Path
     sequences: int  # 1 for drive, N for pairs
     frames_per_sequence: int
@@ -266,7 +268,7 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
     else:
         nominal = make_pose(body_from_camera(math.radians(90.0 - PAIR_TILT_DEG)),
                             np.array([0.0, 0.0, PAIR_DISTANCE]))
-    x, y = _grid(width, height)
+    x, y = grid(width, height)
     metres_per_texel = 0.85 * float(np.min(pixel_size_on_plane(plane_homography(cam, nominal), x, y)))
     if texture is None or (isinstance(texture, str) and texture in TEXTURES):
         n_tex = procedural_texture_size(width, height)
@@ -280,9 +282,9 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
         texture_desc = str(Path(texture).resolve())
     if low_texture:
         n_pad = 16
-        smooth = cv2.GaussianBlur(np.pad(tex_image, n_pad, mode="wrap"), (0, 0), 4.0)
-        smooth = smooth[n_pad:-n_pad, n_pad:-n_pad]
-        tex_image = ((smooth - smooth.mean()) * (0.25 * TEXTURE_STD / max(float(smooth.std()), 1e-6))
+        blurred = cv2.GaussianBlur(np.pad(tex_image, n_pad, mode="wrap"), (0, 0), 4.0)
+        blurred = blurred[n_pad:-n_pad, n_pad:-n_pad]
+        tex_image = ((blurred - blurred.mean()) * (0.25 * TEXTURE_STD / max(float(blurred.std()), 1e-6))
                      + TEXTURE_MEAN).astype(np.float32)
     tex = GroundTexture(tex_image, metres_per_texel)
     period = np.array(tex.shape[::-1], dtype=float) * metres_per_texel  # (u, v) metres
@@ -310,8 +312,8 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
             poses = drive_poses(frames, motion_rng, peak_step=float(max_translation), origin=origin)
         photometric = None
         if exposure:
-            gains = 1.0 + EXPOSURE_GAIN * _smooth(photo_rng, frames, (30.0, 200.0))
-            biases = EXPOSURE_BIAS * _smooth(photo_rng, frames, (30.0, 200.0))
+            gains = 1.0 + EXPOSURE_GAIN * smooth(photo_rng, frames, (30.0, 200.0))
+            biases = EXPOSURE_BIAS * smooth(photo_rng, frames, (30.0, 200.0))
             photometric = [(float(g), float(b)) for g, b in zip(gains, biases)]
         params.update(mast_height=DRIVE_MAST_HEIGHT, pitch_deg=DRIVE_PITCH_DEG)
         if rover:

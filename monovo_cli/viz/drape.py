@@ -209,6 +209,7 @@ class DrapedOverlayRenderer(OverlayRenderer):
                                                self.ground_from_world)
 
     def advance(self, world_from_cam: np.ndarray | None, status: str | None = None) -> bool:
+        """:meth:`OverlayRenderer.advance`, a newly placed triangle then draped onto the map."""
         placed = super().advance(world_from_cam, status)
         if placed:
             self._onto_map(world_from_cam)

@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 
 from monovo_cli.mapping.terrain_map import HeightGrid
-from monovo_cli.viz.plots import AXIS, BACKGROUND, FONT, _label, _nice_step
+from monovo_cli.viz.plots import AXIS, BACKGROUND, FONT, label, nice_step
 
 PATH = (40, 40, 40)
 
@@ -57,16 +57,16 @@ def plot_height_map(grid: HeightGrid, *, path: np.ndarray | None = None,
     x1, y1 = int(round(ox + s * ext_x)), int(round(oy + s * ext_y))
     img[y0:y1, x0:x1] = cv2.resize(colours, (x1 - x0, y1 - y0), interpolation=cv2.INTER_NEAREST)
     cv2.rectangle(img, (x0, y0), (x1, y1), AXIS, 1)
-    step = _nice_step(max(ext_x, ext_y))
+    step = nice_step(max(ext_x, ext_y))
     for i in range(math.ceil(grid.x0 / step), math.floor((grid.x0 + ext_x) / step) + 1):
         x = int(round(ox + (i * step - grid.x0) * s))
-        lab = _label(i * step, step)
+        lab = label(i * step, step)
         (tw, th), _ = cv2.getTextSize(lab, FONT, text, 1)
         cv2.line(img, (x, y1), (x, y1 + 5), AXIS, 1)
         cv2.putText(img, lab, (x - tw // 2, y1 + th + 9), FONT, text, AXIS, 1, cv2.LINE_AA)
     for i in range(math.ceil(grid.y0 / step), math.floor((grid.y0 + ext_y) / step) + 1):
         y = int(round(oy + (grid.y0 + ext_y - i * step) * s))
-        lab = _label(i * step, step)
+        lab = label(i * step, step)
         (tw, th), _ = cv2.getTextSize(lab, FONT, text, 1)
         cv2.line(img, (x0 - 5, y), (x0, y), AXIS, 1)
         cv2.putText(img, lab, (x0 - tw - 9, y + th // 2), FONT, text, AXIS, 1, cv2.LINE_AA)
@@ -85,7 +85,7 @@ def plot_height_map(grid: HeightGrid, *, path: np.ndarray | None = None,
     img[by0:by1, bx0:bx1] = cv2.applyColorMap(np.repeat(ramp, bx1 - bx0, axis=1),
                                               cv2.COLORMAP_VIRIDIS)
     cv2.rectangle(img, (bx0, by0), (bx1, by1), AXIS, 1)
-    bstep = _nice_step(hi - lo, 5)
+    bstep = nice_step(hi - lo, 5)
     for i in range(math.ceil(lo / bstep), math.floor(hi / bstep) + 1):
         v = i * bstep
         y = int(round(by1 - (v - lo) / (hi - lo) * (by1 - by0)))

@@ -57,8 +57,9 @@ def on_plane(positions: np.ndarray, plane: Plane) -> np.ndarray:
     return np.stack([d @ right, d @ fwd], axis=1)
 
 
-def _nice_step(span: float, target: int = 6) -> float:
-    """A 1-2-5 grid step giving about ``target`` intervals over ``span``."""
+def nice_step(span: float, target: int = 6) -> float:
+    """A 1-2-5 grid step (same unit as ``span``) giving about ``target`` intervals over
+    ``span``."""
     raw = max(span, 1e-9) / target
     p = 10.0 ** math.floor(math.log10(raw))
     for m in (1.0, 2.0, 5.0, 10.0):
@@ -67,7 +68,8 @@ def _nice_step(span: float, target: int = 6) -> float:
     return 10.0 * p
 
 
-def _label(v: float, step: float) -> str:
+def label(v: float, step: float) -> str:
+    """``v`` as a tick label on a grid of ``step``: as many decimals as the step needs."""
     decimals = max(0, -int(math.floor(math.log10(step)))) if step < 1 else 0
     return f"{v:.{decimals}f}"
 
@@ -92,7 +94,7 @@ def plot_trajectory(world_from_cam: np.ndarray, plane: Plane, *,
     span = float(max(hi[0] - lo[0], hi[1] - lo[1], 0.05))
     centre = 0.5 * (lo + hi)
     lo, hi = centre - 0.55 * span, centre + 0.55 * span
-    step = _nice_step(span)
+    step = nice_step(span)
     img = np.full((h, w, 3), BACKGROUND, np.uint8)
     scale_text = max(0.4, w / 1600.0)
     left, right_m, top, bottom = int(0.11 * w), int(0.04 * w), int(0.09 * h), int(0.09 * h)
@@ -118,13 +120,13 @@ def plot_trajectory(world_from_cam: np.ndarray, plane: Plane, *,
     for i in range(math.ceil(lo[0] / step), math.floor(hi[0] / step) + 1):
         x = int(round(ox + (i * step - lo[0]) * s))
         cv2.line(img, (x, py0), (x, py1), GRID, 1)
-        lab = _label(i * step, step)
+        lab = label(i * step, step)
         (tw, th), _ = cv2.getTextSize(lab, FONT, scale_text, 1)
         cv2.putText(img, lab, (x - tw // 2, py1 + th + 8), FONT, scale_text, AXIS, 1, cv2.LINE_AA)
     for i in range(math.ceil(lo[1] / step), math.floor(hi[1] / step) + 1):
         y = int(round(oy + (hi[1] - i * step) * s))
         cv2.line(img, (px0, y), (px1, y), GRID, 1)
-        lab = _label(i * step, step)
+        lab = label(i * step, step)
         (tw, th), _ = cv2.getTextSize(lab, FONT, scale_text, 1)
         cv2.putText(img, lab, (px0 - tw - 8, y + th // 2), FONT, scale_text, AXIS, 1, cv2.LINE_AA)
     cv2.rectangle(img, (px0, py0), (px1, py1), AXIS, 1)
@@ -133,11 +135,11 @@ def plot_trajectory(world_from_cam: np.ndarray, plane: Plane, *,
     cv2.putText(img, xl, ((px0 + px1 - tw) // 2, h - 10), FONT, scale_text, AXIS, 1, cv2.LINE_AA)
     yl = "forward (m)"
     (tw, th), _ = cv2.getTextSize(yl, FONT, scale_text, 1)
-    label = np.full((th + 8, tw + 4, 3), BACKGROUND, np.uint8)
-    cv2.putText(label, yl, (2, th + 2), FONT, scale_text, AXIS, 1, cv2.LINE_AA)
-    label = cv2.rotate(label, cv2.ROTATE_90_COUNTERCLOCKWISE)
-    y0 = max(0, (py0 + py1 - label.shape[0]) // 2)
-    img[y0:y0 + label.shape[0], 4:4 + label.shape[1]] = label[: h - y0]
+    side = np.full((th + 8, tw + 4, 3), BACKGROUND, np.uint8)
+    cv2.putText(side, yl, (2, th + 2), FONT, scale_text, AXIS, 1, cv2.LINE_AA)
+    side = cv2.rotate(side, cv2.ROTATE_90_COUNTERCLOCKWISE)
+    y0 = max(0, (py0 + py1 - side.shape[0]) // 2)
+    img[y0:y0 + side.shape[0], 4:4 + side.shape[1]] = side[: h - y0]
 
     thick = max(1, int(round(w / 400.0)))
     r = max(3, int(round(w / 130.0)))

@@ -1,4 +1,5 @@
-"""One frame's motion: maximum likelihood on intensity differences (sections 10.2.3-10.2.4).
+"""One frame's motion: maximum likelihood on intensity differences (the paper's sections
+10.2.3-10.2.4; docs/algorithm.md sections 1-3).
 
 For observation points ``X_i`` (keyframe camera, on the ground plane) with keyframe
 intensities ``I_i`` and gradients ``g_i``, the current frame's pose ``cur_from_key = T``
@@ -23,8 +24,9 @@ The warp is exact: the points lie on the keyframe's plane n.X = d, so a keyframe
 moves to K (R + t n^T / d) K^-1 x, the plane's homography, applied to all points in one
 OpenCV call (a camera with lens distortion moves and projects the 3-D points instead).
 The current frame is then sampled there by OpenCV's remap: bicubically at the finest level
-(Keys' kernel; bilinear interpolation misses fine texture by twice as much, see
-``benchmarks/interpolation.py``), bilinearly at the coarser ones.
+(Keys' kernel: the observation points are where the image changes fastest, where bilinear
+interpolation is worst; docs/algorithm.md section 3, "Interpolation"), bilinearly at the
+coarser ones.
 
 Beyond the paper: at the finest level the rows o_i take g from the derivative of the
 interpolating cubic B-spline at the keyframe pixels (``image.gradients.spline_gradient``, a
@@ -68,9 +70,9 @@ class KeyLevel:
     photometric columns (I_i, 1); ``probes`` (4, 3) are the extreme points, used to measure
     how far an update moves the image. ``grid`` holds the points' keyframe pixels as a remap
     grid (see ``pixel_grid``); ``plane_m`` (3,) is ``n / d`` of the plane they lie on
-    (``plane_m . X = 1``; a zero vector when they do not lie on one: points with depths of
-    their own, :mod:`monovo_cli.mapping.depth`) and ``box_rays`` (4, 3) the rays K^-1 (u, v, 1)
-    of the corners of the points' bounding box in the keyframe image.
+    (``plane_m . X = 1``; a zero vector when they do not lie on one: points lifted onto a
+    relief, :func:`~monovo_cli.core.estimator.relief.lifted_levels`) and ``box_rays`` (4, 3)
+    the rays K^-1 (u, v, 1) of the corners of the points' bounding box in the keyframe image.
     """
 
     points: LevelPoints
@@ -82,6 +84,8 @@ class KeyLevel:
 
     @classmethod
     def from_points(cls, points: LevelPoints) -> KeyLevel:
+        """The level of ``points`` (keyframe camera, one pyramid level) with its rows evaluated
+        once (docs/algorithm.md section 3: inverse compositional, a constant O)."""
         cam = points.camera
         D = distortion_jacobian(cam, points.X) if cam.has_distortion and len(points) else None
         O = observation_matrix(points.X, points.grad, cam.fx, cam.fy, D)
@@ -359,7 +363,9 @@ def estimate_motion(levels: Sequence[KeyLevel], pyramid: Sequence[np.ndarray],
     ``levels[l]`` are the keyframe's points at pyramid level l (finest first) and
     ``pyramid[l]`` the current frame's level-l image (float32). ``cur_from_key`` (4x4) is the
     initial guess, ``gain``/``bias`` that of the brightness model. Levels above
-    ``first_level`` are skipped.
+    ``first_level`` are skipped. Returns the :class:`Estimate` at the finest level, its
+    covariance ``sigma^2 (O^T W O)^-1`` (docs/algorithm.md section 3); ValueError for an
+    unknown ``options.interpolation``.
     """
     opts = options or EstimatorOptions()
     T = np.array(cur_from_key, dtype=np.float64)

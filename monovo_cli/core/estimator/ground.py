@@ -4,7 +4,8 @@ The model is a rectangle of two triangles lying on the ground plane, expressed i
 camera frame of the keyframe it was built on (x right, y down, z forward, metres). An
 observation point is a keyframe pixel inside the model's image with a Sobel gradient
 magnitude above ``threshold`` (the paper's delta_1), lifted onto the plane by
-intersecting its viewing ray with the plane; it carries its intensity and gradient.
+intersecting its viewing ray with the plane; it carries its intensity and gradient. How
+many points each level keeps and why: docs/algorithm.md section 3, "Observation points".
 """
 
 from __future__ import annotations
@@ -50,15 +51,19 @@ class LevelPoints:
 
     @property
     def tri(self) -> np.ndarray:
+        """(N,) int8: the model triangle (0 or 1) each point lies on."""
         return self._triangles[0]
 
     @property
     def bary(self) -> np.ndarray:
+        """(N, 3) float32: each point's barycentric coordinates on its triangle."""
         return self._triangles[1]
 
 
 def default_threshold(noise_sigma: float) -> float:
-    """Default delta_1: three times the std of one Sobel component of pure noise (0.433 sigma)."""
+    """Default delta_1 (grey levels per px) for image noise ``noise_sigma`` (grey levels):
+    three times the std of one Sobel component of pure noise (0.433 sigma), at least 1
+    (docs/algorithm.md section 3, "Observation points")."""
     return max(1.0, 3.0 * 0.433 * noise_sigma)
 
 
@@ -171,8 +176,9 @@ def select_points(image: np.ndarray, camera: PinholeCamera, plane: Plane, corner
 
 
 def require_points(points: LevelPoints, *, minimum: int, threshold: float) -> None:
-    """Raise TrackingError when a keyframe has too few observation points to estimate 6 DoF."""
+    """Raise TrackingError when ``points`` (a keyframe level's) are fewer than ``minimum``,
+    too few to estimate 6 DoF; the message names the gradient ``threshold`` they passed."""
     if len(points) < minimum:
         raise TrackingError(
             f"only {len(points)} observation points with gradient > {threshold:.3g} in the ground "
-            f"region (need {minimum}); lower --threshold or choose another region")
+            f"region (need {minimum}); lower the gradient threshold or choose another region")

@@ -1,7 +1,8 @@
 """Derivatives of the projection: the observation rows of the estimator and the plane fit.
 
-Linearisation (our derivation; it replaces eqs. 10.5-10.12, which carry a lost sign in
-the projection derivative, eq. 10.6, and a C_X where C_Y belongs, eq. 10.9). For the
+Linearisation (our derivation, docs/algorithm.md section 2; it replaces eqs. 10.5-10.12,
+which carry a lost sign in the projection derivative, eq. 10.6, and a C_X where C_Y belongs,
+eq. 10.9). For the
 projection u = fx X/Z + cx, v = fy Y/Z + cy:
 
     d(u, v)/dX = [[fx/Z, 0, -fx X/Z^2],

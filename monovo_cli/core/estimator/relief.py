@@ -1,4 +1,5 @@
-"""Ground that is not a plane: a keyframe's relief, estimated with the motion (issue 14).
+"""Ground that is not a plane: a keyframe's relief, estimated with the motion
+(docs/algorithm.md section 9, "The relief").
 
 The paper's "future work" made concrete: the keyframe's ground is its plane plus a **height
 field on a grid of vertices** over the model rectangle (a mesh of quads, bilinear within
@@ -87,9 +88,8 @@ class Relief:
         noise gives over ``h.size`` heights by SIGNIFICANCE sigma, and it is at least
         MIN_EXPLAINED per point of the ``points`` it was measured on. On real images most
         of the residual is other model error (lens, lighting, objects off the ground): a
-        relief that explains little of it is significant but bends to that error (the KITTI
-        on-ramp: 0.03-0.26 per point, and 2.2 -> 3.6 % of the distance when used; the rolling
-        and sloped drives: 0.39-4.2)."""
+        relief that explains little of it is significant but bends to that error
+        (docs/algorithm.md section 9)."""
         dof = self.h.size
         return (self.chi2 > dof + SIGNIFICANCE * np.sqrt(2.0 * dof)
                 and self.chi2 >= MIN_EXPLAINED * self.points)
@@ -202,8 +202,8 @@ def _prior(relief: Relief, X: np.ndarray, idx: np.ndarray, bw: np.ndarray) -> np
     * the gauge: the best-fit plane of the points' heights meets the ground at the camera's
       foot (where the keyframe plane's distance, the camera's height, is measured) within
       FOOT_SIGMA. Pinning the points' mean height instead would turn a pitch error of the
-      keyframe plane into a scale error (the points lie metres ahead: 1 deg gave 15 mm on a
-      0.5 m step, against 0.2 mm).
+      keyframe plane into a scale error, the points lying metres ahead (docs/algorithm.md
+      section 9, "the gauge of scale").
     """
     ny, nx = relief.h.shape
     V = ny * nx

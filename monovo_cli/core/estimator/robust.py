@@ -3,7 +3,8 @@
 The estimator's iteratively reweighted least squares weights each difference by a Huber (or
 Tukey) M-estimator with the scale from the differences' median absolute deviation; a
 difference within :func:`inlier_bound` of zero counts as an inlier (the tracker's checks,
-the rotation search's score, the overlay's colours).
+the rotation search's score, the overlay's colours). docs/algorithm.md section 3, "Robust
+weights", and section 4, "Loss".
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""The keyframe plane as a Gaussian belief: carried through the motions, fused at re-anchors.
+"""The keyframe plane as a Gaussian belief: carried through the motions, fused at re-anchors
+(docs/algorithm.md section 4, "The new keyframe's plane").
 
 A plane ``{X : n . X = d}`` near a reference plane ``(n_r, d_r)`` has the chart coordinates
 ``x = (d - d_r, theta_1, theta_2)`` (m, rad) with ``theta = E_r^T n / (n_r . n)``, where the
@@ -18,12 +19,10 @@ of the informations, iterated on the sphere) of
     itself; the motion's error adds ``-n . v`` to the distance and ``n x w`` to the normal.
     Then a process noise of DISTANCE_CHANGE times the distance and TILT_CHANGE_DEG on each
     tilt: on ground that is not a plane the carried plane errs by more than the motion's
-    covariance knows (its model error, ~1 % of the distance per keyframe on the benchmark's
-    terrain), and the new keyframe's patch of ground is not the old one (a road's ramp, a
-    swell: the patch ahead turns by a fraction of a degree to a degree from the last). Without
+    covariance knows, and the new keyframe's patch of ground is not the old one. Without
     the tilt's, the carried normal's information only grows from keyframe to keyframe and
-    the images' normal of each new patch, biased on curved ground, walks it away unchecked by
-    the mounting prior (KITTI's on-ramp: 10 deg of roll over 50 m, 17 % of the distance);
+    the images' normal of each new patch, biased on curved ground, walks it away unchecked
+    by the mounting prior;
 (b) the plane measured from the images at that keyframe: the normal from the joint
     refinement of motion and normal (:mod:`monovo_cli.core.plane.fit`), with the information
     of its normal equations; no information on the distance (with d and the translation
@@ -33,6 +32,8 @@ of the informations, iterated on the sphere) of
     and ``ground.sigma_deg`` (suspension, terrain). Each keyframe's prior counts as an
     independent measurement of that keyframe's ground, so the scale converges to the mean
     of the departures rather than to frame 0's: frame 0 is one sample, not the truth.
+
+How the process noises were chosen, and what they cost and buy: the docs section above.
 """
 
 from __future__ import annotations
@@ -90,6 +91,7 @@ class PlaneBelief:
 
     @property
     def eta(self) -> np.ndarray:
+        """(3,) the information vector (zeros when ``vector`` is None)."""
         return np.zeros(3) if self.vector is None else np.asarray(self.vector, dtype=float)
 
     @property
@@ -99,6 +101,7 @@ class PlaneBelief:
 
     @classmethod
     def from_covariance(cls, plane: Plane, covariance: np.ndarray) -> PlaneBelief:
+        """The belief with mean ``plane`` and ``covariance`` (3, 3) in its chart (invertible)."""
         return cls(plane, np.linalg.inv(covariance))
 
     def in_chart(self, ref: Plane) -> tuple[np.ndarray, np.ndarray]:

@@ -1,4 +1,5 @@
-"""Measuring the ground plane at a keyframe from the images.
+"""Measuring the ground plane at a keyframe from the images (belief (b) of docs/algorithm.md
+section 4).
 
 Carrying the plane from keyframe to keyframe with the accumulated estimate alone lets an
 error in the normal bias the next motions, which tilt the normal further. At each re-anchor

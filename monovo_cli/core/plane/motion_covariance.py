@@ -1,64 +1,28 @@
 """The reported covariance of a frame's motion T_{k-1}_k: the estimates' noise and the
-keyframe plane's error.
+keyframe plane's error (docs/algorithm.md section 3, "Covariance").
 
 Each frame is estimated against its keyframe, whose points ``X_i = d ray_i / (n . ray_i)``
-lie on the keyframe's plane ``(n, d)``. That plane is known only to within
-``PlaneTracker.covariance`` P (3, 3) of its chart coordinates ``x = (d, theta_1, theta_2)``
-(:mod:`monovo_cli.core.plane.belief`), and an error ``dx`` in it moves every point along its
-ray, ``X_i -> (1 + s_i) X_i`` with
+lie on the keyframe's plane, known only to within its covariance P (3, 3) in the chart
+``x = (d, theta_1, theta_2)`` (m, rad, rad; :mod:`monovo_cli.core.plane.belief`). An error
+``dx`` moves every point along its ray by the share ``s_i = dd / d - X_i . E dtheta / d``
+(E the chart's tangent basis), its intensity difference by ``c_i s_i`` with ``c_i = a_i .
+t_kc`` (``a_i`` the translation part of its observation row, ``t_kc`` key_from_cur's
+translation), and the estimator's normal equations (weights W, normal matrix N with the
+brightness model) turn that into the twist error
 
-    s_i = dd / d - X_i . E dtheta / d       (E: the chart's tangent basis at n).
+    S = [N^-1 J^T W diag(c) [1/d, -X E / d]]_motion          (6, 3),
 
-The estimate answers to first order with the twist ``p = S dx`` (``key_from_cur_est =
-exp(p^) key_from_cur``, the convention of ``Estimate.covariance``): a point moved along its
-keyframe ray moves in the current image by its parallax, ``-J_pi t s_i`` (t the current
-frame's translation), i.e. its intensity difference by ``c_i s_i`` with ``c_i = a_i .
-t_kc`` (``a_i`` the first three entries of its observation row o_i, ``t_kc`` key_from_cur's
-translation; the inverse compositional approximation of the current gradient by the
-keyframe's), and the estimator's normal equations (weights W, normal matrix N over the motion
-and the brightness model) turn that into
+whose distance column is exactly ``(t_kc / d, 0)`` (the images fix t / d). Both frames of
+T_{k-1}_k share the keyframe plane, so with ``A = Ad(prev_from_key)`` the plane adds
+``A (S_k - S_{k-1}) P (S_k - S_{k-1})^T A^T`` to their independent estimation noises.
 
-    S = [N^-1 J^T W diag(c) [1/d, -X E / d]]_motion          (6, 3).
-
-Its distance column is exactly ``(t_kc / d, 0)``: the images fix t / d, so a distance error
-scales every translation against the keyframe by ``1 + dd / d`` (:func:`plane_sensitivity`
-uses the exact column; the linear one approximates it).
-
-For T_{k-1}_k, whose left twist is ``Ad(prev_from_key) (xi_k - xi_{k-1})``, the two frames'
-estimation noises are independent but their plane errors are one and the same (one keyframe
-plane): the plane adds ``A (S_k - S_{k-1}) P (S_k - S_{k-1})^T A^T`` with ``A =
-Ad(prev_from_key)``. Its distance part is ``var(dd / d) t t^T`` on the translation (t that of
-T_{k-1}_k): a fixed share of the step, however many frames the keyframe lives. Most of the
-tilt part cancels in the same way, and what is left grows with the step too.
-
-P itself is the keyframe plane's belief, whose widths are chosen for the MAP's weights (the
-process noise, the mounting prior's default width), not measured. :class:`PlaneConsistency`
-calibrates it for reporting from how the keyframe planes actually agree at each re-anchor:
-
-- distance: the carried distance against the mounting prior's, ``nu_d = d_carried - d_prior``
-  with predicted variance ``P_c + (process noise)^2 + sigma_prior^2``; the median of their
-  ratios (normalised by 0.455, the median of chi-square with 1 dof) scales P's distance
-  variance (covariance matching: where the carried plane and the prior agree better than
-  their widths say, so does the MAP of the two);
-- tilt: the carried tilt against the new keyframe's, ``nu_t``; what it holds beyond the two
-  beliefs' own covariances (their noise) is the plane model's error (ground that is not a
-  plane, the normal measured on the previous keyframe's patch). Its element-wise median
-  (robust to the first keyframes' settling, normalised by 0.455) is added to P's tilt
-  block after a factor ``1 / (2 (1 - rho))``: consecutive keyframe planes share most of that
-  error, and ``nu_t`` only sees what changes between them. TILT_PERSISTENCE is rho, 2/3
-  (a factor 1.5). The lag-1 correlation of the keyframe planes' tilt errors against the true
-  ground is 0.8-0.9 on the rolling terrain drive (a factor 2.5-5), but the frames are tracked
-  against the relief carried from keyframe to keyframe, which takes up much of that error:
-  with 0.9 the reported std was twice the errors' spread after the first re-anchor on the
-  rolling and sloped drives (std of error / std 0.35-0.5 on ty, tz and rx); with 2/3 (and
-  the tilt noise below) 0.54-1.14 on every axis of the four terrain drives, 0.56-1.91 on
-  another seed's rolling and sloped ones (benchmarks.terrain, docs/benchmarks.md).
-
-Before the first re-anchor the tilt's model error is not measured yet: a plane the images did
-not confirm as exact (:func:`~monovo_cli.core.plane.belief.exact_covariance`) gets the
-filter's own tilt process noise per keyframe, TILT_CHANGE_DEG on each angle. Without it the
-first frames of the rolling drive, on frame 0's plane corrected to the swell under it to
-within 0.02 deg, had pitch errors twelve times their reported std.
+P is the filter's belief, whose widths are set for the MAP's weights rather than measured;
+:class:`PlaneConsistency` calibrates it for reporting from how the keyframe planes agree at
+the re-anchors (covariance matching on the distance; the tilt's model error, scaled by
+``1 / (2 (1 - TILT_PERSISTENCE))`` because consecutive keyframe planes share most of it).
+Before the first re-anchor a plane the images did not confirm as exact gets the filter's
+tilt process noise. Why these choices, and how honest the result is on the terrain drives:
+the docs section above.
 """
 
 from __future__ import annotations
@@ -97,16 +61,15 @@ def plane_sensitivity(level: KeyLevel, plane: Plane, cur_from_key: np.ndarray,
                       weights: np.ndarray, normal: np.ndarray,
                       sample: tuple[np.ndarray, np.ndarray, int] | None = None) -> np.ndarray:
     """S (6, 3): the estimate's twist error (m, rad; ``key_from_cur_est = exp(p^)
-    key_from_cur``) per unit error of the keyframe plane's chart coordinates (m, rad, rad).
+    key_from_cur``) per unit error of the keyframe plane's chart coordinates (m, rad, rad),
+    the module docstring's S.
 
     ``level`` the keyframe's finest level (points on ``plane``, keyframe camera),
     ``cur_from_key`` (4x4) the estimate, ``weights`` (N,) and ``normal`` (P, P) its final
     robust weights and normal matrix (``Estimate.weights``/``.normal``). The distance column
-    is exact; the tilt columns' sum over the points runs over ``sample``
-    (:func:`point_sample` of ``level``, made here if None; a caller with many frames per
-    keyframe keeps it), times its stride: at 512² every 4th point, which moves them by ~3 %
-    (5 % at most on the rolling terrain drive) and costs a quarter of the memory traffic.
-    Module docstring.
+    is exact; the tilt columns' sum over the points runs over ``sample`` (:func:`point_sample`
+    of ``level``, made here if None; a caller with many frames per keyframe keeps it), times
+    its stride: an estimate of the full sum at a fraction of the memory traffic.
     """
     R, t = cur_from_key[:3, :3], cur_from_key[:3, 3]
     t_kc = -R.T @ t
@@ -166,7 +129,15 @@ class MotionCovariance:
 
 class PlaneConsistency:
     """Calibrates the keyframe plane's covariance for reporting from the re-anchors seen so far
-    (the last CONSISTENCY_WINDOW; module docstring)."""
+    (the last CONSISTENCY_WINDOW; docs/algorithm.md section 3, "Covariance").
+
+    Distance: at each re-anchor the carried distance and the mounting prior's differ by
+    ``nu_d``, of predicted variance ``P_carried + (process noise)^2 + sigma_prior^2``; the
+    median of ``nu_d^2 / predicted`` over CHI2_1_MEDIAN scales the distance variance.
+    Tilt: what the outer product of the carried and new planes' tilt difference holds beyond
+    their two covariances is the plane model's error; its element-wise median over
+    CHI2_1_MEDIAN, times ``1 / (2 (1 - TILT_PERSISTENCE))``, is added to the tilt block.
+    """
 
     def __init__(self) -> None:
         self._distance_nis: deque[float] = deque(maxlen=CONSISTENCY_WINDOW)
@@ -194,7 +165,10 @@ class PlaneConsistency:
             self._tilt_excess.append(excess)
 
     def reported(self, covariance: np.ndarray) -> np.ndarray:
-        """The plane covariance (3, 3) of the keyframe plane's chart, calibrated."""
+        """``covariance`` (3, 3), the keyframe plane's in its chart (m, rad), calibrated: the
+        distance's row and column scaled, the tilt's model error added (before any re-anchor:
+        TILT_CHANGE_DEG on each tilt). A plane taken as exact (tilt std within 10 EXACT_STD)
+        comes back unchanged."""
         if self._calibration is None:  # (worked out once per re-anchor)
             g, Q = 1.0, np.eye(2) * math.radians(TILT_CHANGE_DEG) ** 2
             if self._distance_nis:

@@ -8,7 +8,7 @@ known only that loosely (tilt std above PLANE_SETTLED_DEG: frame 0, a re-initial
 slope) correct it, images that confirm it (an exact init.yaml, e.g. the paper's pairs) make
 it exact. At a re-anchor, :meth:`PlaneTracker.successor` gives the new keyframe's plane: the
 MAP of the plane carried by the motion, the normal measured from the two images and the
-mounting prior.
+mounting prior. docs/algorithm.md section 4 gives the reasons and thresholds.
 """
 
 from __future__ import annotations

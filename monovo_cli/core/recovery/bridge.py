@@ -2,10 +2,10 @@
 
 A lost frame carries the tracker's prediction, the last accepted motion repeated (constant
 velocity). A rover that stops driving to turn in place breaks that prediction at the worst
-moment: on the MER-spacing drive (docs/benchmarks.md) a frame lost at a 15 deg turn carried a
-0.7 m step instead, and the re-initialisations that followed anchored their fresh keyframes
-66-70 cm and 12-19 deg off the truth, most of that run's final error. The feature hypothesis
-(:mod:`monovo_cli.core.recovery.features`) does not depend on the motion's size, so it bridges them:
+moment, and the re-initialisations that follow anchor their fresh keyframes where the
+prediction put them (docs/algorithm.md section 8, "Bridging a lost frame"). The feature
+hypothesis (:mod:`monovo_cli.core.recovery.features`) does not depend on the motion's size,
+so it bridges them:
 
 * a :class:`Reference` is the latest frame whose pose the tracker trusts: the keyframe
   while tracking, a bridged lost frame while recovering. The current frame's hypothesis is

@@ -1,4 +1,5 @@
-"""A feature-based motion hypothesis over the known ground plane: the direct search's capture range.
+"""A feature-based motion hypothesis over the known ground plane: the direct search's capture
+range (docs/algorithm.md section 7).
 
 The direct estimator converges from within a few pixels of the answer; a rover step of 0.75 m
 or an 18 deg turn moves the ground by a large part of the image. Features do not care how far
@@ -99,6 +100,7 @@ class FeatureMotion:
 
     @property
     def inlier_ratio(self) -> float:
+        """The share of the matches RANSAC kept (0 without matches)."""
         return self.inliers / self.matches if self.matches else 0.0
 
 
