@@ -37,7 +37,7 @@ from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_tum
 from monovo_cli.io.sources import open_frames
-from monovo_cli.mapping.hindsight import segment_lifts, smoothed_distances, smoothed_poses
+from monovo_cli.mapping.smoothing import segment_log_distance_ratios, smoothed_distances, smoothed_poses
 from monovo_cli.synth.write import synthesize
 
 CASES = ("flat", "rolling", "slope", "rocks", "plane")
@@ -77,7 +77,7 @@ def run_case(seq: Path, kind: str) -> dict:
     if true is not None:
         anchored = [k for _, k in chain]
         filtered = np.array([k.plane.distance for k in anchored])
-        solved = smoothed_distances(anchored, segment_lifts(index, W, chain))
+        solved = smoothed_distances(anchored, segment_log_distance_ratios(index, W, chain))
         row["distances"] = [(1000 * abs(d[0] - true[0]), 1000 * float(np.sqrt(np.mean((d - true) ** 2))))
                             for d in (filtered, solved)]
     return row

@@ -21,7 +21,7 @@ decoding included, on one core), and the ECC peer of ``benchmarks.peers`` runs o
 PNGs in the same run (it carries init.yaml's plane with its own motions). Reported per
 method: the final position error (% of the distance) of trajectory.tum, and for monovo also
 of motion.csv's motions composed (as streamed; trajectory.tum is re-scaled in hindsight with
-the smoothed keyframe planes, ``monovo_cli.mapping.hindsight``), the final heading error (the angle of
+the smoothed keyframe planes, ``monovo_cli.mapping.smoothing``), the final heading error (the angle of
 the final pose's rotation error), the scale ratio (estimated / true length of the per-frame
 translations, over the whole drive and over its last third: a creeping scale shows as a
 difference), the mean absolute per-frame errors, lost (monovo) or failed (ECC) frames and
@@ -163,7 +163,7 @@ def main() -> None:
                     help="the ground's texture, as `synth --texture`: gravel, or an image file "
                          "(e.g. a frame of ../shared/real, a texture nothing was tuned on)")
     ap.add_argument("--plane-only", action="store_true",
-                    help="monovo with --plane-only (the paper's one plane per keyframe, no relief)")
+                    help="monovo with --plane-only (the paper's one plane per keyframe, no terrain grid)")
     args = ap.parse_args()
     one_core()
     print(f"Machine: {machine()}; {load()} at the start\n")
@@ -176,7 +176,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for kind in args.cases:
             results.append(run_case(Path(tmp), kind, args.frames, args.seed, args.renders,
-                                    TrackOptions(relief=not args.plane_only), args.texture))
+                                    TrackOptions(terrain_grid=not args.plane_only), args.texture))
             print(f"({kind} done, {load()})", flush=True)
     print()
     print(table(results))

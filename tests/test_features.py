@@ -117,7 +117,7 @@ def test_mer_spacing_motions_are_recovered(scene, name, g1, tol_m, tol_deg):
     dt, dr = errors(fm.cur_from_key, gt)
     assert dt < tol_m and dr < tol_deg, (name, dt, dr)
     assert fm.inliers >= 100 and fm.inlier_ratio > 0.5
-    assert fm.rms_px < 2.0 and fm.plane_consistency > 0.9
+    assert fm.rms_px < 2.0 and fm.planarity > 0.9
     # the inliers are true matches: the true motion carries each key ray onto its cur ray
     assert len(fm.key_rays) == len(fm.cur_rays) == fm.inliers
     Xc = plane.intersect(fm.key_rays) @ gt[:3, :3].T + gt[:3, 3]

@@ -11,7 +11,7 @@ reasons; each motion within 5e-5 m + 1e-4 of its translation and 0.002 deg; poin
 0.1 %, iterations within 1, msd within 1 %; the trajectories' positions within 0.1 mm + 0.05 %
 of the path so far and their quaternions within 3e-4. The reported stds only within a factor
 of 3: the keyframe plane's covariance is calibrated by medians over the re-anchors so far
-(motion_covariance.PlaneConsistency), a single sample after the first, in which a rounding
+(motion_covariance.PlaneCovarianceCalibration), a single sample after the first, in which a rounding
 shows (measured: std_rz 2.5x on the exposure drive's frame 19, 1.5-2x until frame 32).
 """
 

@@ -1,4 +1,4 @@
-"""The poses re-scaled in hindsight (monovo_cli.mapping.hindsight), against hand-made chains."""
+"""The poses re-scaled in hindsight (monovo_cli.mapping.smoothing), against hand-made chains."""
 
 import math
 from types import SimpleNamespace
@@ -13,8 +13,8 @@ from monovo_cli.core.run import KeyRecord, RunRecorder
 from monovo_cli.geometry.lie import make_pose, se3_inv, so3_exp
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.formats import read_tum
-from monovo_cli.mapping.hindsight import (
-    segment_lifts,
+from monovo_cli.mapping.smoothing import (
+    segment_log_distance_ratios,
     smoothed_distances,
     smoothed_poses,
 )
@@ -109,7 +109,7 @@ def bobbing_chain(held: bool = False) -> tuple[np.ndarray, np.ndarray, list]:
     start = 1e-14 if held else 0.05 ** 2
     keys = [(0, KeyRecord(0, est[0], Plane(N0, 1.5), None))]
     for k in (10, 20):
-        link = PlaneLink(np.eye(3), np.zeros(3), carried_distance=1.5, carried_variance=0.03 ** 2,
+        link = PlaneLink(np.eye(3), np.zeros(3), propagated_distance=1.5, propagated_variance=0.03 ** 2,
                          previous_variance=start if k == 10 else 0.04 ** 2, mounting=(1.5, 0.05))
         key_plane = Plane(se3_inv(est[k])[:3, :3] @ est[0][:3, :3] @ N0, 1.5)
         keys.append((k, KeyRecord(k, est[k], key_plane, link)))
@@ -124,9 +124,9 @@ def test_the_mounting_prior_holds_over_each_segment_s_frames_not_its_keyframe_al
     truth, est, keys = bobbing_chain()
     anchored = [k for _, k in keys]
     assert smoothed_distances(anchored) == pytest.approx([1.5, 1.5, 1.5], abs=1e-9)
-    lifts = segment_lifts(range(30), est, keys)
-    assert lifts[0] == pytest.approx(math.log(1.5 / 1.53), abs=2e-4)
-    assert smoothed_distances(anchored, lifts) == pytest.approx([1.53] * 3, abs=3e-4)
+    log_ratios = segment_log_distance_ratios(range(30), est, keys)
+    assert log_ratios[0] == pytest.approx(math.log(1.5 / 1.53), abs=2e-4)
+    assert smoothed_distances(anchored, log_ratios) == pytest.approx([1.53] * 3, abs=3e-4)
     path = float(np.sum(np.linalg.norm(np.diff(truth[:, :3, 3], axis=0), axis=1)))
     before = np.linalg.norm(est[-1][:3, 3] - truth[-1][:3, 3]) / path
     out = smoothed_poses(range(30), est, keys)
@@ -141,7 +141,7 @@ def test_a_keyframe_plane_confirmed_as_exact_is_held_in_hindsight():
     keeps its distance; the later ones move only as far as their priors outweigh the chain."""
     _, est, keys = bobbing_chain(held=True)
     anchored = [k for _, k in keys]
-    d = smoothed_distances(anchored, segment_lifts(range(30), est, keys))
+    d = smoothed_distances(anchored, segment_log_distance_ratios(range(30), est, keys))
     assert d[0] == pytest.approx(1.5, abs=1e-9)
     assert 1.5 < d[1] < d[2] < 1.53
 

@@ -16,15 +16,15 @@ from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane.belief import (
     TILT_CHANGE_DEG,
     PlaneBelief,
-    carried_plane,
     exact_covariance,
     mounting_prior,
+    propagated_plane,
     to_chart,
 )
 from monovo_cli.core.plane.motion_covariance import (
     TILT_PERSISTENCE,
     MotionCovariance,
-    PlaneConsistency,
+    PlaneCovarianceCalibration,
     plane_sensitivity,
     point_sample,
 )
@@ -138,13 +138,13 @@ def test_consecutive_frames_share_the_plane_error(pair):
     np.testing.assert_allclose(again, A @ (2 * est.covariance) @ A.T, rtol=1e-9, atol=1e-20)
 
 
-def _reanchor(pc: PlaneConsistency, rng, nu_d_std: float, nu_t_std: float) -> None:
+def _reanchor(pc: PlaneCovarianceCalibration, rng, nu_d_std: float, nu_t_std: float) -> None:
     key = Plane(N0, 1.5)
     tiny = np.diag([1e-12, 1e-12, 1e-12])
     nu_t = rng.normal(0.0, nu_t_std, 2)
     new = PlaneBelief.from_covariance(tilted(key, -nu_t[0], -nu_t[1]), tiny)
     prior = mounting_prior(Plane(N0, 1.5 - rng.normal(0.0, nu_d_std)), 0.05, 3.0)
-    pc.reanchored(carried_plane(key, tiny, np.eye(4), np.zeros((6, 6))), new, prior, 0.03)
+    pc.reanchored(propagated_plane(key, tiny, np.eye(4), np.zeros((6, 6))), new, prior, 0.03)
 
 
 def test_plane_consistency_calibrates_distance_and_tilt_by_hand():
@@ -152,7 +152,7 @@ def test_plane_consistency_calibrates_distance_and_tilt_by_hand():
     spread over the predicted (0.05^2 + 0.03^2), and the tilt gets their variance over
     2 (1 - rho); both within sampling error (400 re-anchors, medians: ~10 %)."""
     rng = np.random.default_rng(5)
-    pc = PlaneConsistency()
+    pc = PlaneCovarianceCalibration()
     P = np.diag([0.03 ** 2, 1e-8, 1e-8])
     # nothing seen yet: the distance as it is, the tilt with the filter's process noise; a
     # plane taken as exact as it is
@@ -173,13 +173,13 @@ def test_plane_consistency_calibrates_distance_and_tilt_by_hand():
 
 def test_plane_consistency_ignores_innovations_its_beliefs_explain():
     """Tilt innovations no larger than the two planes' own covariances add nothing."""
-    pc = PlaneConsistency()
+    pc = PlaneCovarianceCalibration()
     key = Plane(N0, 1.5)
     cov = np.diag([1e-4, math.radians(0.5) ** 2, math.radians(0.5) ** 2])
     for k in range(20):
         a = math.radians(0.3) * (-1) ** k
         new = PlaneBelief.from_covariance(tilted(key, a, -a), cov)
-        pc.reanchored(carried_plane(key, cov, np.eye(4), np.zeros((6, 6))), new,
+        pc.reanchored(propagated_plane(key, cov, np.eye(4), np.zeros((6, 6))), new,
                       mounting_prior(key, 0.05, 3.0), 0.03)
     P = np.diag([1e-4, 1e-6, 1e-6])
     np.testing.assert_allclose(pc.reported(P)[1:, 1:], P[1:, 1:])

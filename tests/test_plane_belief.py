@@ -10,7 +10,6 @@ from plane_helpers import N0, tilted
 from monovo_cli.core.odometry import Odometry, estimate_frames
 from monovo_cli.core.plane.belief import (
     PlaneBelief,
-    carried_plane,
     chart_jacobian,
     default_sigmas,
     from_chart,
@@ -18,6 +17,7 @@ from monovo_cli.core.plane.belief import (
     keyframe_plane,
     mounting_prior,
     propagate,
+    propagated_plane,
     tilt_std_deg,
     to_chart,
     transported,
@@ -27,7 +27,7 @@ from monovo_cli.errors import ConfigError
 from monovo_cli.geometry.lie import make_pose, se3_inv, so3_exp
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.config import load_init
-from monovo_cli.mapping.hindsight import smoothed_keyframes, smoothed_poses
+from monovo_cli.mapping.smoothing import smoothed_keyframes, smoothed_poses
 from monovo_cli.mapping.terrain_map import TerrainMap
 from monovo_cli.synth.motion import camera_mount
 from monovo_cli.synth.render import (
@@ -127,7 +127,7 @@ def test_propagate_by_hand():
 def test_keyframe_plane_halves_the_prior_when_nothing_moved():
     plane = Plane(N0, 1.5)
     prior = mounting_prior(plane, 0.05, 3.0)
-    f = keyframe_plane(carried_plane(plane, prior.covariance, np.eye(4), np.zeros((6, 6))),
+    f = keyframe_plane(propagated_plane(plane, prior.covariance, np.eye(4), np.zeros((6, 6))),
                        prior=prior)
     assert np.allclose(f.covariance, prior.covariance / 2)
     assert f.plane == Plane(f.plane.normal, 1.5) and np.allclose(f.plane.normal, N0)
@@ -139,7 +139,7 @@ def test_keyframe_plane_adds_the_distance_process_noise():
     # 1 / (1/0.0034 + 1/0.0025) = 0.00144; the mean moves 0.0034 / 0.0059 of the way to d0
     plane = Plane(N0, 1.5)
     prior = mounting_prior(Plane(N0, 1.4), 0.05, 3.0)
-    f = keyframe_plane(carried_plane(plane, prior.covariance, np.eye(4), np.zeros((6, 6))),
+    f = keyframe_plane(propagated_plane(plane, prior.covariance, np.eye(4), np.zeros((6, 6))),
                        prior=prior,
                        distance_change=0.03)
     assert f.covariance[0, 0] == pytest.approx(1.0 / (1.0 / 0.0034 + 1.0 / 0.0025))
@@ -154,7 +154,7 @@ def test_keyframe_plane_adds_the_tilt_process_noise():
     prior = mounting_prior(Plane(N0, 1.5), 1e3, 3.0)
     plane = tilted(Plane(N0, 1.5), math.radians(2.0))
     cov = np.diag([1e-6, math.radians(0.1) ** 2, math.radians(0.1) ** 2])
-    carried = carried_plane(plane, cov, np.eye(4), np.zeros((6, 6)))
+    carried = propagated_plane(plane, cov, np.eye(4), np.zeros((6, 6)))
     stiff = keyframe_plane(carried, prior=prior)
     loose = keyframe_plane(carried, prior=prior, tilt_change=math.radians(1.0))
 

@@ -184,7 +184,7 @@ def test_a_lost_frame_keeps_the_prediction_the_features_confirm(drive):
         res.append(odo.start(f.index, f.timestamp, f.image) if not res else
                    odo.step(f.index, f.timestamp, f.image))
         if f.index == 8:
-            hyp = odo._bridging.current[1]
+            hyp = odo._recovery.current[1]
     assert hyp is not None and hyp.motion.inliers >= 50  # the features had their say
     assert res[8].status == FrameStatus.LOST
     np.testing.assert_allclose(res[8].prev_from_cur, res[7].prev_from_cur, atol=1e-12)

@@ -1,10 +1,11 @@
-"""The keyframe relief (core/estimator/relief.py): heights over the keyframe plane, solved with the pose.
+"""The keyframe terrain grid (core/estimator/terrain_grid.py): heights over the keyframe plane,
+solved with the pose.
 
-Pinned here: the geometry of a relief (a lifted point stays on its keyframe ray at its
+Pinned here: the geometry of a terrain grid (a lifted point stays on its keyframe ray at its
 bilinear height; ``Plane.intersect`` undoes it), the joint Gauss-Newton's derivatives against
-finite differences, the estimator's warp of points that are not on one plane, the relief
+finite differences, the estimator's warp of points that are not on one plane, the terrain grid
 carried to the next keyframe against an analytic bump, a rendered two-view pair over a
-rolling and a flat ground, and the tracker's ``relief`` option on a short rolling drive.
+rolling and a flat ground, and the tracker's ``terrain_grid`` option on a short rolling drive.
 """
 
 from __future__ import annotations
@@ -20,16 +21,16 @@ from plane_helpers import tilted
 from monovo_cli.core.estimator.estimate import KeyLevel, estimate_motion
 from monovo_cli.core.estimator.ground import LevelPoints
 from monovo_cli.core.estimator.jacobian import project_in_front
-from monovo_cli.core.estimator.relief import (
+from monovo_cli.core.estimator.terrain_grid import (
     MAX_VERTICES_PER_SIDE,
-    Relief,
+    TerrainGrid,
     _curvature_normal,
-    carried,
+    height_rows,
     lifted_levels,
     plane_axes,
-    refine_pose_and_relief,
-    relief_rows,
-    solve_relief,
+    refine_pose_and_terrain_grid,
+    solve_terrain_grid,
+    transfer_terrain_grid,
 )
 from monovo_cli.core.keyframe import build_keyframe
 from monovo_cli.core.odometry import estimate_frames
@@ -63,13 +64,13 @@ def plane_points(n: int, seed: int, cam=CAM, plane=PLANE, top: float = 30.0) -> 
     return plane.intersect(cam.rays(uv))
 
 
-def random_relief(X: np.ndarray, seed: int, std: float = 0.03, **kw) -> Relief:
-    rel = Relief.flat(PLANE, X, **kw)
+def random_terrain_grid(X: np.ndarray, seed: int, std: float = 0.03, **kw) -> TerrainGrid:
+    rel = TerrainGrid.flat(PLANE, X, **kw)
     return replace(rel, h=np.random.default_rng(seed).normal(0.0, std, rel.h.shape))
 
 
-def vertices(rel: Relief) -> np.ndarray:
-    """(ny nx, 3) the relief's grid vertices on its plane (its camera), row by row."""
+def vertices(rel: TerrainGrid) -> np.ndarray:
+    """(ny nx, 3) the terrain_grid's grid vertices on its plane (its camera), row by row."""
     ny, nx = rel.h.shape
     j, i = np.mgrid[0:ny, 0:nx]
     ax = plane_axes(rel.plane)
@@ -103,14 +104,14 @@ def test_plane_axes_are_right_and_forward_on_the_plane():
 
 def test_flat_grid_covers_the_points_and_caps_its_vertices():
     X = plane_points(2000, 0)
-    rel = Relief.flat(PLANE, X)
+    rel = TerrainGrid.flat(PLANE, X)
     xy = X @ plane_axes(PLANE).T
     ny, nx = rel.h.shape
     assert rel.cell == 0.4 and not rel.h.any()
     assert rel.origin == pytest.approx(xy.min(axis=0))
     assert np.all(xy <= np.array(rel.origin) + rel.cell * np.array([nx - 1, ny - 1]) + 1e-12)
     # a wide view (40 m across): cells of extent / (MAX_VERTICES_PER_SIDE - 1), still covering
-    wide = Relief.flat(PLANE, X * 10.0)  # (not on the plane: only the extent matters)
+    wide = TerrainGrid.flat(PLANE, X * 10.0)  # (not on the plane: only the extent matters)
     extent = np.ptp(10.0 * xy, axis=0)
     assert wide.cell == pytest.approx(extent.max() / (MAX_VERTICES_PER_SIDE - 1), rel=1e-12)
     ny, nx = wide.h.shape
@@ -121,7 +122,7 @@ def test_flat_grid_covers_the_points_and_caps_its_vertices():
 def test_lift_keeps_the_keyframe_ray_at_the_relief_height():
     """n . X = d - h(X) with h the bilinear height at the point's plane crossing, X on its ray."""
     X = plane_points(2000, 1)
-    rel = random_relief(X, 2)
+    rel = random_terrain_grid(X, 2)
     L = rel.lift(X)
     h = rel.heights(X)
     assert np.abs(h).max() > 0.03  # heights of several cm
@@ -131,12 +132,12 @@ def test_lift_keeps_the_keyframe_ray_at_the_relief_height():
     assert PLANE.intersect(L) == pytest.approx(X, abs=1e-12)  # the plane's intersection inverts lift
     assert rel.lift(PLANE.intersect(L)) == pytest.approx(L, abs=1e-12)
     # zero heights leave the points where they are
-    assert Relief.flat(PLANE, X).lift(X) == pytest.approx(X, abs=1e-12)
+    assert TerrainGrid.flat(PLANE, X).lift(X) == pytest.approx(X, abs=1e-12)
 
 
 def test_weights_are_a_partition_of_unity_and_reproduce_an_affine_field():
     X = plane_points(3000, 3)
-    rel = Relief.flat(PLANE, X)
+    rel = TerrainGrid.flat(PLANE, X)
     ny, nx = rel.h.shape
     idx, w = rel.weights(X)
     assert idx.shape == w.shape == (len(X), 4)
@@ -151,7 +152,7 @@ def test_weights_are_a_partition_of_unity_and_reproduce_an_affine_field():
     xy = X @ plane_axes(PLANE).T
     assert affine.heights(X) == pytest.approx(a + b * xy[:, 0] + c * xy[:, 1], abs=1e-12)
     # a vertex gets its own height; beyond the grid, the edge's
-    noisy = random_relief(X, 4)
+    noisy = random_terrain_grid(X, 4)
     assert noisy.heights(vertices(noisy)) == pytest.approx(noisy.h.ravel(), abs=1e-12)
     beyond = vertices(noisy)[:nx] - 0.5 * plane_axes(PLANE)[1]  # half a metre before row 0
     assert noisy.heights(beyond) == pytest.approx(noisy.h[0], abs=1e-12)
@@ -236,7 +237,7 @@ def finite_difference_case(cam, T: np.ndarray, uv: np.ndarray, h: np.ndarray,
 def test_relief_rows_match_finite_differences():
     """dI/d(twist) and dI/dh of I(pi(exp(delta^) T X(h))) at 12 points against central
     differences of the rendered function (steps 1e-5 m / rad). With the function's own
-    gradient the rows agree to 1e-6 of the largest (measured 2e-9); with what solve_relief
+    gradient the rows agree to 1e-6 of the largest (measured 2e-9); with what solve_terrain_grid
     uses (Sobel of the float image, sampled bilinearly) to 3 % of each value, or of 5 % of
     its row's largest where smaller (measured 1.6 %).
 
@@ -250,12 +251,12 @@ def test_relief_rows_match_finite_differences():
     h = rng.uniform(-0.05, 0.05, len(uv))
     fd, Xc, u, v, dXc_dh = finite_difference_case(CAM, T, uv, h, bounds=(2, 125))
     gx, gy = waves_gradient(u, v)
-    o, jh = relief_rows(CAM, Xc, gx, gy, dXc_dh)
+    o, jh = height_rows(CAM, Xc, gx, gy, dXc_dh)
     exact = np.vstack([o, jh])
     assert exact.shape == (7, len(uv))
     assert np.abs(exact - fd).max() <= 1e-6 * np.abs(fd).max()
     sx, sy = sobel_gradient(image)
-    o, jh = relief_rows(CAM, Xc, sample_bilinear(sx, u, v)[0], sample_bilinear(sy, u, v)[0], dXc_dh)
+    o, jh = height_rows(CAM, Xc, sample_bilinear(sx, u, v)[0], sample_bilinear(sy, u, v)[0], dXc_dh)
     sobel = np.vstack([o, jh])
     scale = np.maximum(np.abs(fd), 0.05 * np.abs(fd).max(axis=1, keepdims=True))
     assert np.max(np.abs(sobel - fd) / scale) < 0.03
@@ -266,11 +267,11 @@ def test_relief_rows_match_finite_differences():
 
 
 def test_warp_grid_moves_and_projects_points_off_one_plane():
-    """Points lifted onto a relief: no plane (plane_m = 0); the warp is the points moved and
+    """Points lifted onto a terrain_grid: no plane (plane_m = 0); the warp is the points moved and
     projected, within 1e-3 px (measured 3e-5); behind the camera they are invalid."""
     X = plane_points(3000, 5)
     flat = KeyLevel.from_points(level_points(X))
-    rel = random_relief(X, 6)
+    rel = random_terrain_grid(X, 6)
     lifted, = lifted_levels((flat,), rel)
     assert not lifted.plane_m.any()
     assert lifted.points.X == pytest.approx(rel.lift(X), abs=1e-12)
@@ -292,11 +293,11 @@ def test_warp_grid_moves_and_projects_points_off_one_plane():
 
 
 def test_warp_grid_of_planar_points_keeps_the_homography():
-    """Points on the plane (also lifted onto a relief of zero heights) keep plane_m = n / d
+    """Points on the plane (also lifted onto a terrain grid of zero heights) keep plane_m = n / d
     and are warped by K (R + t m^T) K^-1, exactly as OpenCV applies it."""
     X = plane_points(3000, 7)
     kl = KeyLevel.from_points(level_points(X))
-    zero, = lifted_levels((kl,), Relief.flat(PLANE, X))
+    zero, = lifted_levels((kl,), TerrainGrid.flat(PLANE, X))
     T = make_pose(so3_exp(np.array([0.02, -0.03, 0.01])), np.array([0.1, -0.05, -0.4]))
     for level in (kl, zero):
         assert level.plane_m == pytest.approx(N0 / 1.5, abs=1e-9)
@@ -311,8 +312,8 @@ def test_warp_grid_of_planar_points_keeps_the_homography():
 
 def test_carried_without_motion_is_the_relief_less_its_best_fit_plane():
     X = plane_points(3000, 8)  # (< 5000: carried fits its plane to every point)
-    rel = random_relief(X, 9)
-    new = carried(rel, np.eye(4), PLANE, X)
+    rel = random_terrain_grid(X, 9)
+    new = transfer_terrain_grid(rel, np.eye(4), PLANE, X)
     assert new.plane == PLANE and new.cell == rel.cell and new.origin == rel.origin
     assert new.chi2 == 0.0
     xy = X @ plane_axes(PLANE).T
@@ -331,7 +332,7 @@ def bump(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 def test_carried_to_a_moved_keyframe_follows_a_bump_on_the_ground():
     """Two keyframes 0.4 m apart (turned 5.7 deg) over the same ground with a 5 cm bump.
-    The old relief holds the bump's heights at its vertices (0.2 m grid); carried to the new
+    The old terrain grid holds the bump's heights at its vertices (0.2 m grid); carried to the new
     keyframe's plane and points it gives the bump there, less its best-fit plane over the
     points, to 1 mm (measured 0.61 mm max, 0.19 mm RMS; the bump spans 32 mm there)."""
     g0 = camera_mount(40.0)
@@ -345,11 +346,11 @@ def test_carried_to_a_moved_keyframe_follows_a_bump_on_the_ground():
     P0, P1 = ground(4000, (1.6, 6.0), (-2.0, 2.0)), ground(3000, (2.2, 5.4), (-1.4, 1.4))
     X0 = (P0 - g0[:3, 3]) @ g0[:3, :3]  # keyframe cameras (within the old keyframe's grid)
     X1 = (P1 - g1[:3, 3]) @ g1[:3, :3]
-    old = Relief.flat(planes[0], X0, cell=0.2)
+    old = TerrainGrid.flat(planes[0], X0, cell=0.2)
     V = vertices(old) @ g0[:3, :3].T + g0[:3, 3]
     assert np.abs(V[:, 2]).max() < 1e-12
     old = replace(old, h=bump(V[:, 0], V[:, 1]).reshape(old.h.shape))
-    new = carried(old, se3_inv(g1) @ g0, planes[1], X1)
+    new = transfer_terrain_grid(old, se3_inv(g1) @ g0, planes[1], X1)
     assert new.plane == planes[1] and new.cell == 0.4
     A = np.column_stack([np.ones(len(X1)), X1 @ plane_axes(planes[1]).T])
     truth = bump(P1[:, 0], P1[:, 1])
@@ -365,7 +366,7 @@ def test_carried_to_a_moved_keyframe_follows_a_bump_on_the_ground():
 def test_flat_grid_has_at_most_max_vertices_per_side():
     """A view wide enough for the cap to set the cell (extent / (MAX - 1), a whole number of
     cells) gets MAX vertices on that side, not one more."""
-    wide = Relief.flat(PLANE, plane_points(2000, 0) * 10.0)
+    wide = TerrainGrid.flat(PLANE, plane_points(2000, 0) * 10.0)
     assert max(wide.h.shape) == MAX_VERTICES_PER_SIDE
 
 
@@ -417,25 +418,25 @@ def start(truth: np.ndarray) -> np.ndarray:
 
 def test_relief_on_rolling_ground_beats_the_plane(texture):
     """A +-5 cm swell (2-5 m wavelengths) seen 0.4 m apart. Measured: the planar estimate
-    is 2.84 mm / 0.034 deg off, the joint relief 0.50 mm / 0.0054 deg (chi-square 20793 over
+    is 2.84 mm / 0.034 deg off, the joint terrain grid 0.50 mm / 0.0054 deg (chi-square 20793 over
     380 heights: significant); the keyframe's points are 1.40 cm RMS off the true surface on
-    the plane, 0.28 cm RMS (95 % within 0.53 cm) lifted onto the relief."""
+    the plane, 0.28 cm RMS (95 % within 0.53 cm) lifted onto the terrain_grid."""
     key, pyr, truth, g0, terrain = two_views("rolling", texture)
     opts = TrackOptions().estimator
     est = estimate_motion(key.levels, pyr, start(truth), options=opts)
     assert est.converged
-    new, relief, lifted = refine_pose_and_relief(key.levels[0], key.plane, pyr[0], est, opts)
-    assert relief.significant and relief.chi2 > 10 * relief.h.size
+    new, terrain_grid, lifted = refine_pose_and_terrain_grid(key.levels[0], key.plane, pyr[0], est, opts)
+    assert terrain_grid.significant and terrain_grid.chi2 > 10 * terrain_grid.h.size
     assert lifted is not None and new.converged and new is not est
     t_plane, r_plane = pose_error(est.cur_from_key, truth)
     t_relief, r_relief = pose_error(new.cur_from_key, truth)
     assert t_plane > 2e-3 and r_plane > 0.025  # the plane's model error shows
     assert t_relief < 1e-3 and t_relief < 0.35 * t_plane
     assert r_relief < 0.01 and r_relief < 0.35 * r_plane
-    # the lifted level: the keyframe's pixels, on the relief found
+    # the lifted level: the keyframe's pixels, on the terrain grid found
     assert not lifted.plane_m.any()
     assert lifted.points.uv is key.levels[0].points.uv
-    assert lifted.points.X == pytest.approx(relief.lift(key.levels[0].points.X), abs=1e-12)
+    assert lifted.points.X == pytest.approx(terrain_grid.lift(key.levels[0].points.X), abs=1e-12)
 
     def off_surface(X: np.ndarray) -> np.ndarray:
         G = X @ g0[:3, :3].T + g0[:3, 3]
@@ -454,22 +455,22 @@ def test_flat_ground_keeps_the_planar_estimate(texture):
     key, pyr, truth, _, _ = two_views("flat", texture)
     opts = TrackOptions().estimator
     est = estimate_motion(key.levels, pyr, start(truth), options=opts)
-    new, relief, lifted = refine_pose_and_relief(key.levels[0], key.plane, pyr[0], est, opts)
-    assert not relief.significant and relief.chi2 < relief.h.size
+    new, terrain_grid, lifted = refine_pose_and_terrain_grid(key.levels[0], key.plane, pyr[0], est, opts)
+    assert not terrain_grid.significant and terrain_grid.chi2 < terrain_grid.h.size
     assert new is est and lifted is None
     # (noise: 5.0 mm RMS, most of it the heights' own tilt, which the prior leaves nearly free)
-    assert np.sqrt(np.mean(relief.heights(key.levels[0].points.X) ** 2)) < 0.01
+    assert np.sqrt(np.mean(terrain_grid.heights(key.levels[0].points.X) ** 2)) < 0.01
     t, r = pose_error(est.cur_from_key, truth)
     assert t < 2e-4 and r < 0.005
 
 
 def test_a_pitched_keyframe_plane_does_not_turn_into_scale(texture):
     """Flat ground, the keyframe plane pitched 1 deg off the true one (its distance, the
-    camera's height, kept): the planar estimate is 4.2 mm off. Solved, the relief takes the
+    camera's height, kept): the planar estimate is 4.2 mm off. Solved, the terrain grid takes the
     tilt up and, its gauge at the camera's foot, the pose ends 0.30 mm off (pinning the
     points' mean height to the pitched plane instead gave 11.6 mm). Its chi-square, 7015
-    over 440 heights, is significant but only 0.21 per point: refine_pose_and_relief keeps
-    the plane's estimate (a tilt is the keyframe plane's business, not the relief's)."""
+    over 440 heights, is significant but only 0.21 per point: refine_pose_and_terrain_grid keeps
+    the plane's estimate (a tilt is the keyframe plane's business, not the terrain_grid's)."""
     cam, mount, g0, g1, _, img0, img1, _ = rendered_pair("flat", texture)
     plane = tilted(Plane(*ground_in_camera(g0)), math.radians(1.0))
     opts = TrackOptions()
@@ -477,16 +478,16 @@ def test_a_pitched_keyframe_plane_does_not_turn_into_scale(texture):
     pyr = build_pyramid(img1, len(key.levels))
     truth = se3_inv(g1) @ g0
     est = estimate_motion(key.levels, pyr, start(truth), options=opts.estimator)
-    relief, T, gain, bias = solve_relief(key.levels[0], key.plane, pyr[0], est.cur_from_key,
+    terrain_grid, T, gain, bias = solve_terrain_grid(key.levels[0], key.plane, pyr[0], est.cur_from_key,
                                          gain=est.gain, bias=est.bias, options=opts.estimator)
-    lifted, = lifted_levels(key.levels[:1], relief)
+    lifted, = lifted_levels(key.levels[:1], terrain_grid)
     new = estimate_motion((lifted,), (pyr[0],), T, options=opts.estimator, gain=gain, bias=bias)
     t_plane, _ = pose_error(est.cur_from_key, truth)
     t_relief, _ = pose_error(new.cur_from_key, truth)
     assert t_plane > 3e-3 and t_relief < 1e-3
-    assert relief.chi2 > relief.h.size + 3 * math.sqrt(2 * relief.h.size)
-    assert relief.chi2 < 0.3 * relief.points and not relief.significant
-    kept, _, none = refine_pose_and_relief(key.levels[0], key.plane, pyr[0], est, opts.estimator)
+    assert terrain_grid.chi2 > terrain_grid.h.size + 3 * math.sqrt(2 * terrain_grid.h.size)
+    assert terrain_grid.chi2 < 0.3 * terrain_grid.points and not terrain_grid.significant
+    kept, _, none = refine_pose_and_terrain_grid(key.levels[0], key.plane, pyr[0], est, opts.estimator)
     assert kept is est and none is None
 
 
@@ -495,52 +496,54 @@ def test_a_pitched_keyframe_plane_does_not_turn_into_scale(texture):
 
 @pytest.fixture(scope="module")
 def rolling_drive(tmp_path_factory):
-    out = tmp_path_factory.mktemp("relief") / "rolling"
+    out = tmp_path_factory.mktemp("terrain_grid") / "rolling"
     synthesize(out, terrain="rolling", frames=20, size=(256, 256), seed=3, noise_var=10)
     return out
 
 
-def run(seq, relief: bool):
+def run(seq, terrain_grid: bool):
     cfg = load_init(seq / "init.yaml")
     images = [f.image for f in open_frames(seq / "frames")]
     keys = []
     res = list(estimate_frames(((k, float(k), im) for k, im in enumerate(images)), cfg.camera, cfg.plane,
-                     cfg.region, TrackOptions(relief=relief), on_keyframe=keys.append))
+                     cfg.region, TrackOptions(terrain_grid=terrain_grid), on_keyframe=keys.append))
     return res, keys
 
 
 def test_track_with_relief_sends_the_left_keyframe_again_lifted(rolling_drive):
     """20 frames of the rolling drive (seed 3), one re-anchor (frame 11). on_keyframe gets
-    keyframe 0 again, with its relief and lifted points, just before keyframe 11, which
-    carries the relief's shape. The rotation ends 0.061 deg off with the relief, 0.180 deg
+    keyframe 0 again, with its terrain grid and lifted points, just before keyframe 11, which
+    carries the terrain_grid's shape. The rotation ends 0.061 deg off with the terrain grid, 0.180 deg
     without (final positions: test_track_with_relief_ends_no_further_off)."""
-    res, keys = run(rolling_drive, relief=True)
+    res, keys = run(rolling_drive, terrain_grid=True)
     assert all(r.status in (FrameStatus.OK, FrameStatus.REANCHORED) for r in res)
     anchors = [r.index for r in res if r.status is FrameStatus.REANCHORED]
     assert len(anchors) == 1 and 8 <= anchors[0] <= 12
     p = [k.index for k in keys].index(anchors[0])
     assert p >= 2 and keys[p - 1].index == keys[p - 2].index == 0
     before, left, new = keys[p - 2:p + 1]
-    assert all(k.relief is None for k in keys[:p - 1])  # keyframe 0 as anchored (and settled)
+    assert all(k.terrain_grid is None for k in keys[:p - 1])  # keyframe 0 as anchored (and settled)
     assert left.world_from_key is before.world_from_key and left.plane == before.plane
-    assert left.relief is not None and left.relief.significant and left.relief.plane == left.plane
+    grid = left.terrain_grid
+    assert grid is not None and grid.significant and grid.plane == left.plane
     fine = left.levels[0]
     assert not fine.plane_m.any()
     assert fine.points.X == pytest.approx(
-        left.relief.lift(left.plane.intersect(before.levels[0].points.X)), abs=1e-12)
+        left.terrain_grid.lift(left.plane.intersect(before.levels[0].points.X)), abs=1e-12)
     assert len(left.levels) == len(before.levels)
     assert all(a is b for a, b in zip(left.levels[1:], before.levels[1:]))
-    # the new keyframe: the relief carried (its shape only), every level lifted onto it
-    assert new.relief is not None and new.relief.plane == new.plane and new.relief.chi2 == 0.0
+    # the new keyframe: the terrain grid carried (its shape only), every level lifted onto it
+    grid = new.terrain_grid
+    assert grid is not None and grid.plane == new.plane and grid.chi2 == 0.0
     for level in new.levels:
         assert not level.plane_m.any()
         X = level.points.X
         assert X @ new.plane.normal == pytest.approx(
-            new.plane.distance - new.relief.heights(new.plane.intersect(X)), abs=1e-9)
-    # the final rotation against the ground truth, with and without the relief
+            new.plane.distance - new.terrain_grid.heights(new.plane.intersect(X)), abs=1e-9)
+    # the final rotation against the ground truth, with and without the terrain grid
     _, gt = read_tum(rolling_drive / "groundtruth.tum")
-    plain, plain_keys = run(rolling_drive, relief=False)
-    assert [k.relief for k in plain_keys] == [None] * len(plain_keys)
+    plain, plain_keys = run(rolling_drive, terrain_grid=False)
+    assert [k.terrain_grid for k in plain_keys] == [None] * len(plain_keys)
 
     def rotation_error(r) -> float:
         return math.degrees(float(np.linalg.norm(so3_log(r.world_from_cam[:3, :3].T @ gt[-1][:3, :3]))))
@@ -551,7 +554,7 @@ def test_track_with_relief_sends_the_left_keyframe_again_lifted(rolling_drive):
 
 def test_track_with_relief_ends_no_further_off(rolling_drive):
     """The 20-frame rolling drive (seed 3): the final position is 11.4 mm off with the
-    relief, 17.6 mm with the plane alone."""
+    terrain grid, 17.6 mm with the plane alone."""
     _, gt = read_tum(rolling_drive / "groundtruth.tum")
     with_relief, _ = run(rolling_drive, True)
     plain, _ = run(rolling_drive, False)
@@ -575,18 +578,18 @@ def test_relief_rows_with_lens_distortion_match_finite_differences():
     uv = np.column_stack([rng.uniform(30, 98, 12), rng.uniform(60, 110, 12)])
     h = rng.uniform(-0.05, 0.05, len(uv))
     fd, Xc, u, v, dXc_dh = finite_difference_case(cam, T, uv, h)
-    o, jh = relief_rows(cam, Xc, *waves_gradient(u, v), dXc_dh)
+    o, jh = height_rows(cam, Xc, *waves_gradient(u, v), dXc_dh)
     assert np.abs(np.vstack([o, jh]) - fd).max() <= 1e-4 * np.abs(fd).max()
     # (a pinhole's rows would be off by the distortion: far more than that)
-    o0, jh0 = relief_rows(CAM, Xc, *waves_gradient(u, v), dXc_dh)
+    o0, jh0 = height_rows(CAM, Xc, *waves_gradient(u, v), dXc_dh)
     assert np.abs(np.vstack([o0, jh0]) - fd).max() > 1e-2 * np.abs(fd).max()
 
 
 @pytest.mark.parametrize("u1", [120.0, 60.0])
 def test_degenerate_points_keep_the_plane(u1):
     """Points along one image row, or all at one pixel (the gauge's plane fit over their
-    ground positions degenerate): refine_pose_and_relief gives the estimate back, no
-    relief, and no error."""
+    ground positions degenerate): refine_pose_and_terrain_grid gives the estimate back, no
+    terrain grid, and no error."""
     rays = CAM.rays(np.column_stack([np.linspace(60.0, u1, 400), np.full(400, 100.0)]))
     X = PLANE.intersect(rays)
     uv = np.column_stack([CAM.fx * rays[:, 0] + CAM.cx, CAM.fy * rays[:, 1] + CAM.cy])
@@ -596,5 +599,5 @@ def test_degenerate_points_keep_the_plane(u1):
     image = np.tile(np.linspace(0, 255, CAM.width, dtype=np.float32), (CAM.height, 1))
     opts = TrackOptions().estimator
     est = estimate_motion((level,), (image,), np.eye(4), options=opts)
-    new, relief, lifted = refine_pose_and_relief(level, PLANE, image, est, opts)
-    assert new is est and lifted is None and not relief.significant
+    new, terrain_grid, lifted = refine_pose_and_terrain_grid(level, PLANE, image, est, opts)
+    assert new is est and lifted is None and not terrain_grid.significant

@@ -7,7 +7,7 @@ ever renamed into place), and a fresh rerun reproduces the uninterrupted outputs
 byte. Every file is compared with an uninterrupted reference run of the same sequence.
 
 The runs that are compared by prefix use ``--no-smooth``: by default the trajectory files
-hold the poses re-scaled in hindsight over the frames done (monovo_cli.mapping.hindsight), so
+hold the poses re-scaled in hindsight over the frames done (monovo_cli.mapping.smoothing), so
 an interrupted run's earlier poses differ from the uninterrupted run's, which knew more; the
 files are written by the same code either way. With the default, an interrupted run keeps
 whole rows of exactly the frames done (:func:`test_signal_with_smoothing_keeps_whole_rows`).

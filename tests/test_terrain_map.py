@@ -12,7 +12,7 @@ from monovo_cli.cli import main
 from monovo_cli.geometry.lie import make_pose, so3_exp
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.terrain import HEIGHTMAP_HEADER, heightmap_csv_text, ply_bytes, read_ply
-from monovo_cli.mapping.hindsight import smoothed_keyframes
+from monovo_cli.mapping.smoothing import smoothed_keyframes
 from monovo_cli.mapping.terrain_map import TerrainMap, ground_frame
 
 N0 = np.array([0.0, math.cos(math.radians(40)), math.sin(math.radians(40))])
@@ -74,7 +74,7 @@ def test_smoothing_puts_a_keyframe_on_the_plane_its_successors_found():
     crest); keyframe 1's MAP moved the carried distance 3 cm closer and keyframe 2's 2 cm
     more. With smoother gains of 1 and 0.5 (PlaneTracker.successor's), delta_1 = 0.5 * -0.02
     and delta_0 = 1 * (-0.03 + delta_1) = -0.04: keyframe 0's points land on the plane at
-    1.50 m, a point 10 cm off its plane (relief) keeps its height, and the ground frame is
+    1.50 m, a point 10 cm off its plane (terrain grid) keeps its height, and the ground frame is
     that plane; without smoothing nothing moves, and the last keyframe never does."""
     from monovo_cli.core.plane.belief import PlaneLink, smoothed_corrections
 
@@ -194,13 +194,13 @@ def test_track_terrain_out_on_a_plane_drive(tmp_path):
 
 def test_depth_sweep_puts_points_the_relief_misplaced_back_on_the_ground():
     """Two views of flat ground 0.4 m apart, exact poses; a fifth of the keyframe's points
-    sit 8 cm above the ground (a relief that missed the ground there, as it misses a rock).
+    sit 8 cm above the ground (a terrain grid that missed the ground there, as it misses a rock).
     The sweep moves most of them back to within 1 cm and leaves the others where they are
     (measured: 57 % moved, to 0.79 cm RMS; 0.06 % of the others moved). The rest are points
     whose texture runs along their epipolar line: no height is clearly better there."""
     from monovo_cli.core.estimator.ground import select_points
     from monovo_cli.geometry.lie import se3_inv
-    from monovo_cli.mapping.depth import sweep_depths
+    from monovo_cli.mapping.terrain_depths import sweep_depths
     from monovo_cli.synth.motion import camera_mount
     from monovo_cli.synth.render import GroundRenderer, default_camera, finish_frame, ground_in_camera
     from monovo_cli.synth.texture import GroundTexture, procedural_texture

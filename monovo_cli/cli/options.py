@@ -274,9 +274,9 @@ _TRACK_OPTIONS = {
     "photometric": _track_option(
         "--no-photometric", "photometric", field="estimator.photometric", flag_value=False,
         help="Do not estimate a per-frame brightness gain and bias."),
-    "relief": _track_option(
-        "--plane-only", "relief", field="relief", flag_value=False,
-        help="Keep the paper's one plane per keyframe: no relief (heights on a grid) solved "
+    "terrain_grid": _track_option(
+        "--plane-only", "terrain_grid", field="terrain_grid", flag_value=False,
+        help="Keep the paper's one plane per keyframe: no terrain grid (heights on a grid) solved "
              "with the motion where the ground is not flat."),
     "max_step": _track_option(
         "--max-step", field=("max_step_m", "max_step_deg"), callback=parse_max_step,
@@ -286,7 +286,7 @@ _TRACK_OPTIONS = {
 #: The options of the ground model and the estimator (init).
 MODEL = ("levels", "threshold", "max_points", "robust", "reanchor_fraction")
 #: ... and of the sequence loop (track, batch).
-LOOP = (*MODEL, "photometric", "relief", "max_step")
+LOOP = (*MODEL, "photometric", "terrain_grid", "max_step")
 
 
 def track_options(names: tuple[str, ...]):

@@ -1,7 +1,7 @@
 """A keyframe: the paper's ground model (section 10.2.5) anchored on one frame.
 
 :func:`build_keyframe` picks the observation points of every pyramid level of a frame inside
-the ground rectangle, lifts them onto the plane and precomputes their observation rows
+the ground rectangle, log_ratios them onto the plane and precomputes their observation rows
 (:class:`~monovo_cli.core.estimator.estimate.KeyLevel`); :func:`point_budget` says how many points the
 finest level gets, :func:`footprint` how much of an image the model still covers.
 """
@@ -21,7 +21,7 @@ from monovo_cli.core.estimator.ground import (
     require_points,
     select_points,
 )
-from monovo_cli.core.estimator.relief import Relief
+from monovo_cli.core.estimator.terrain_grid import TerrainGrid
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane.belief import PlaneLink
 from monovo_cli.errors import TrackingError
@@ -48,7 +48,7 @@ class Keyframe:
     levels: tuple[KeyLevel, ...]
     noise_sigma: float
     threshold: float
-    relief: Relief | None = None  # the points' heights off the plane (None: on it)
+    terrain_grid: TerrainGrid | None = None  # the points' heights off the plane (None: on it)
     link: PlaneLink | None = None  # how its plane corrected the one carried from the last keyframe
 
 
@@ -56,11 +56,12 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
                    region: tuple[int, int, int, int], world_from_key: np.ndarray,
                    options: TrackOptions, *, mask: np.ndarray | None = None,
                    pyramid: list[np.ndarray] | None = None,
-                   surface: Callable[[np.ndarray], Relief] | None = None) -> Keyframe:
+                   surface: Callable[[np.ndarray], TerrainGrid] | None = None) -> Keyframe:
     """The ground model of section 10.2.5 on ``image`` (H, W) float32, plane in its camera.
 
     ``surface``, given the finest level's points (N, 3) on the plane, returns the keyframe's
-    relief (:mod:`monovo_cli.core.estimator.relief`): every level's points are then lifted onto it.
+    terrain grid (:mod:`monovo_cli.core.estimator.terrain_grid`): every level's points are then
+    lifted onto it.
 
     Raises TrackingError when the frame has too few observation points.
     """
@@ -77,7 +78,7 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
         raise TrackingError("the ground plane is not in front of the camera over the region")
     levels = []
     m = mask
-    relief = None
+    terrain_grid = None
     for lv in range(n_levels):
         cam = camera.scaled(lv)
         if lv > 0 and m is not None:
@@ -89,15 +90,15 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
         if lv == 0:
             require_points(pts, minimum=options.min_points, threshold=threshold)
             if surface is not None:
-                relief = surface(pts.X)
-        if relief is not None:
-            pts = replace(pts, X=relief.lift(pts.X))
+                terrain_grid = surface(pts.X)
+        if terrain_grid is not None:
+            pts = replace(pts, X=terrain_grid.lift(pts.X))
         levels.append(KeyLevel.from_points(pts))
     # Coarse levels with too few points cannot constrain 6 DoF: drop them.
     while len(levels) > 1 and len(levels[-1].points) < 30:
         levels.pop()
     return Keyframe(index, np.array(world_from_key), plane, corners, tuple(levels), sigma,
-                    threshold, relief)
+                    threshold, terrain_grid)
 
 
 def _one_point_per(pixels: int, camera: PinholeCamera) -> int:

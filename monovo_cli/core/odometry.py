@@ -17,9 +17,9 @@ section 8 the capture, bridging and re-initialisation.
 The ground model itself is built by :mod:`monovo_cli.core.keyframe`; the settings are
 :class:`~monovo_cli.core.options.TrackOptions`.
 
-Long module: one state machine (prediction, capture, acceptance with the relief and the
+Long module: one state machine (prediction, capture, acceptance with the terrain grid and the
 keyframe plane, re-anchoring, loss, re-initialisation) over one mutable state; its parts
-already live in their own modules (recovery.bridge, plane.tracker, estimator.relief,
+already live in their own modules (recovery.bridge, plane.tracker, estimator.terrain_grid,
 plane.motion_covariance), and splitting the loop itself would pass that state around.
 """
 
@@ -35,14 +35,18 @@ from functools import partial
 import numpy as np
 
 from monovo_cli.core.estimator.estimate import Estimate, coarse_search, estimate_motion
-from monovo_cli.core.estimator.relief import Relief, carried, refine_pose_and_relief
 from monovo_cli.core.estimator.robust import inlier_fraction
+from monovo_cli.core.estimator.terrain_grid import (
+    TerrainGrid,
+    refine_pose_and_terrain_grid,
+    transfer_terrain_grid,
+)
 from monovo_cli.core.keyframe import Keyframe, build_keyframe, footprint
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane.belief import PlaneLink
 from monovo_cli.core.plane.motion_covariance import MotionCovariance
 from monovo_cli.core.plane.tracker import PlaneTracker
-from monovo_cli.core.recovery.bridge import Bridging
+from monovo_cli.core.recovery.lost_frames import LostFrameRecovery
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
@@ -125,9 +129,9 @@ class Odometry:
         self._chance_msd = np.inf  # msd of unrelated images (see step)
         self._prev_image: np.ndarray | None = None
         self._key_image: np.ndarray | None = None  # the keyframe's image (plane test)
-        # the keyframe the last step left, with the relief it measured (terrain products)
-        self.retired: list[Keyframe] = []
-        self._bridging = Bridging(camera, options=self.options.features, mask=mask,
+        # the keyframe the last step left, with the terrain grid it measured (terrain products)
+        self.rebuilt_keyframes: list[Keyframe] = []
+        self._recovery = LostFrameRecovery(camera, options=self.options.features, mask=mask,
                                   region=region)  # the feature hypothesis
         self._key_msd: float | None = None  # msd of the first frame fitted to the keyframe
         self._lost_run = 0  # frames lost in a row
@@ -148,7 +152,7 @@ class Odometry:
             self._key = build_keyframe(index, image, self.camera, self._plane0, self.region,
                                        np.eye(4), self.options, mask=self.mask)
         self._prev_image = self._key_image = image
-        self._bridging.anchored(image)
+        self._recovery.anchored(image)
         n = len(self._key.levels[0].points)
         return FrameResult(index, timestamp, np.eye(4), np.eye(4), 0.0, 0, n, FrameStatus.OK,
                            np.zeros(6), np.zeros((6, 6)), keyframe=self._key.index)
@@ -164,7 +168,7 @@ class Odometry:
         """
         key = self._key
         assert key is not None, "call start() first"
-        self.retired.clear()
+        self.rebuilt_keyframes.clear()
         if self._prev_image is not None and image.shape == self._prev_image.shape and \
                 np.array_equal(image, self._prev_image):
             return self._lost(index, timestamp, "duplicate of the previous frame")
@@ -204,7 +208,7 @@ class Odometry:
         ``reason``, competes too)."""
         starts = [self._search(key, pyr, guess)]
         if self.options.feature_hypothesis:
-            hyp = self._bridging.hypothesis(index, image, key.plane)
+            hyp = self._recovery.hypothesis(index, image, key.plane)
             starts += [] if hyp is None else [hyp]
         for start in starts:
             cand = estimate_motion(key.levels, pyr, start, options=self.options.estimator,
@@ -227,14 +231,15 @@ class Odometry:
         status = FrameStatus.OK
         recovering = self._state is OdometryState.RECOVERING
         reanchor = recovering or self._needs_reanchor(est, key, orthonormalize(est.cur_from_key))
-        relief, tracked = None, est
-        if reanchor and key.index != index and self.options.relief:
-            est, relief, lifted = refine_pose_and_relief(key.levels[0], key.plane, pyr[0], est,
-                                                         self.options.estimator, start=key.relief)
+        terrain_grid, tracked = None, est
+        if reanchor and key.index != index and self.options.terrain_grid:
+            est, terrain_grid, lifted = refine_pose_and_terrain_grid(key.levels[0], key.plane, pyr[0], est,
+                                                         self.options.estimator, start=key.terrain_grid)
             if lifted is None:
-                relief = None
+                terrain_grid = None
             else:  # the keyframe's finest points at the heights found
-                self.retired.append(replace(key, levels=(lifted,) + key.levels[1:], relief=relief))
+                self.rebuilt_keyframes.append(replace(key, levels=(lifted,) + key.levels[1:],
+                                                      terrain_grid=terrain_grid))
         cur_from_key = orthonormalize(est.cur_from_key)
         gain, bias = est.gain, est.bias
         plane_cur, plane_cov, link = key.plane.in_frame(cur_from_key), None, None
@@ -249,7 +254,7 @@ class Odometry:
         cov = self._motion_cov.relative(est, key.levels[0], key.plane,
                                         self._plane.reported_covariance,
                                         self._cur_from_key_prev, prev_from_cur)
-        if relief is not None:  # the correction the relief made is this motion's model error
+        if terrain_grid is not None:  # the correction the terrain grid made is this motion's model error
             jump = _motion_change(prev_from_cur, se3_inv(self._world_from_prev)
                                   @ key.world_from_key @ se3_inv(orthonormalize(tracked.cur_from_key)))
             cov = cov + np.outer(jump, jump)
@@ -263,7 +268,7 @@ class Odometry:
         if self._key_msd is None:
             self._key_msd = _robust_msd(est)
         if reanchor and self._reanchor(index, image, pyr, world_from_cur, plane_cur, plane_cov,
-                                       None if relief is None else (relief, cur_from_key), link):
+                                       None if terrain_grid is None else (terrain_grid, cur_from_key), link):
             status = FrameStatus.REANCHORED
         elif not recovering:  # (a recovering tracker whose new keyframe failed stays so)
             self._state = OdometryState.TRACKING
@@ -274,8 +279,8 @@ class Odometry:
     def _lost(self, index: int, timestamp: float, reason: str,
               est: Estimate | None = None) -> FrameResult:
         """The prediction, or the feature hypothesis where it contradicts it
-        (:mod:`monovo_cli.core.recovery.bridge`)."""
-        cur_from_key = self._bridging.lost_pose(
+        (:mod:`monovo_cli.core.recovery.lost_frames`)."""
+        cur_from_key = self._recovery.lost_pose(
             index, orthonormalize(self._velocity @ self._cur_from_key_prev))
         world_from_cur = orthonormalize(self._key.world_from_key @ se3_inv(cur_from_key))
         prev_from_cur = orthonormalize(se3_inv(self._world_from_prev) @ world_from_cur)
@@ -363,13 +368,13 @@ class Odometry:
 
     def _reanchor(self, index: int, image: np.ndarray, pyr: list[np.ndarray],
                   world_from_cur: np.ndarray, plane: Plane, cov: np.ndarray | None = None,
-                  relief: tuple[Relief, np.ndarray] | None = None,
+                  terrain_grid: tuple[TerrainGrid, np.ndarray] | None = None,
                   link: PlaneLink | None = None) -> bool:
         """Anchor a new ground model on this frame (``plane`` in its camera, ``cov`` its
-        covariance, None: the prior's; ``relief``: the old keyframe's relief and this frame's
+        covariance, None: the prior's; ``terrain_grid``: the old keyframe's terrain grid and this frame's
         pose from it, carried onto the new points; ``link``: the plane's link to the old
         keyframe's, for smoothing); False if the frame cannot carry one."""
-        surface = None if relief is None else partial(carried, *relief, plane)
+        surface = None if terrain_grid is None else partial(transfer_terrain_grid, *terrain_grid, plane)
         try:
             key = build_keyframe(index, image, self.camera, plane, self.region,
                                  world_from_cur, self.options, mask=self.mask, pyramid=pyr,
@@ -383,7 +388,7 @@ class Odometry:
         self._gain, self._bias = 1.0, 0.0
         self._state = OdometryState.TRACKING
         self._key_image, self._key_msd = image, None
-        self._bridging.anchored(image)
+        self._recovery.anchored(image)
         return True
 
     @staticmethod
@@ -447,7 +452,7 @@ def estimate_frames(frames: Iterable[tuple[int, float, np.ndarray | None]], came
                                          odo.step(i, t, im, (priors or {}).get(i))
                                          for i, t, im in it)):
         if on_keyframe is not None:
-            for key in odo.retired:  # (rebuilt in place: the points at their relief)
+            for key in odo.rebuilt_keyframes:  # (rebuilt in place: the points at their terrain grid)
                 on_keyframe(key)
             if odo.keyframe is not seen:
                 on_keyframe(seen := odo.keyframe)

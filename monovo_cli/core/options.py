@@ -48,7 +48,7 @@ class FeatureOptions:
     threshold (grey levels); ``ratio``: Lowe's ratio test on the two nearest Hamming
     neighbours (0: cross-check instead); ``ransac_px``: RANSAC inlier threshold in
     full-resolution pixels, scaled by ``2**level``; ``min_inliers`` / ``min_inlier_ratio``:
-    below these the hypothesis is None; ``min_plane_consistency``: the ratio of the two
+    below these the hypothesis is None; ``min_planarity``: the ratio of the two
     tangent singular values (:mod:`monovo_cli.core.recovery.features`, step 3) below which
     the matched surface is not taken for the plane; ``min_depression_deg``: keyframe pixels
     whose rays dip less than this below the plane's horizon are not used; ``refine``: the
@@ -65,7 +65,7 @@ class FeatureOptions:
     ransac_iterations: int = 2000
     min_inliers: int = 15
     min_inlier_ratio: float = 0.15
-    min_plane_consistency: float = 0.5
+    min_planarity: float = 0.5
     min_depression_deg: float = 1.0
     refine: bool = True
     seed: int = 0
@@ -107,7 +107,7 @@ class TrackOptions:
     the rotation search and (``feature_hypothesis``) an ORB + homography motion over the
     known plane (:mod:`monovo_cli.core.recovery.features`) each start the direct estimator; the best
     fit wins. ``features`` are that hypothesis' settings, which also bridge lost frames
-    (:mod:`monovo_cli.core.recovery.bridge`); by default they detect on the coarsest pyramid
+    (:mod:`monovo_cli.core.recovery.lost_frames`); by default they detect on the coarsest pyramid
     level whose shorter side keeps ``detect_side`` px, with fewer features than
     :class:`FeatureOptions`' own defaults, so that their cost does not grow with the frame
     size. After ``reinit_after`` lost frames in a row a fresh keyframe is anchored on the
@@ -117,9 +117,9 @@ class TrackOptions:
     its msd exceeds ``msd_factor`` times the recent median, the normal matrix's condition
     number exceeds ``max_condition``, the finest level hits the iteration cap, or its motion
     exceeds ``max_step_m`` / ``max_step_deg``.
-    With ``relief``, a keyframe that is left gets the heights of its ground off its plane,
+    With ``terrain_grid``, a keyframe that is left gets the heights of its ground off its plane,
     solved with the motion of the frame that leaves it where the images show them
-    (:mod:`monovo_cli.core.estimator.relief`); they are carried to the next keyframe.
+    (:mod:`monovo_cli.core.estimator.terrain_grid`); they are carried to the next keyframe.
     """
 
     levels: int | None = None
@@ -139,7 +139,7 @@ class TrackOptions:
     max_condition: float = 1e7
     max_step_m: float | None = None
     max_step_deg: float | None = None
-    relief: bool = True
+    terrain_grid: bool = True
     estimator: EstimatorOptions = field(default_factory=EstimatorOptions)
     features: FeatureOptions = field(default_factory=_tracking_features)
 

@@ -51,7 +51,7 @@ class TrackRun:
     ``keyframes``: every keyframe anchored, oldest first (a keyframe rebuilt in place
     replaces its earlier record). ``trajectory`` (N, 4, 4): the poses written to
     trajectory.csv / .tum, ``world_from_cam`` re-scaled in hindsight
-    (:mod:`monovo_cli.mapping.hindsight`) or ``world_from_cam`` itself. ``seconds``: the
+    (:mod:`monovo_cli.mapping.smoothing`) or ``world_from_cam`` itself. ``seconds``: the
     wall-clock time of the run.
     """
 

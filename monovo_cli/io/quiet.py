@@ -18,7 +18,7 @@ import cv2
 
 
 class _QuietState:
-    """Reference count of the decodes in flight: the first silences, the last restores."""
+    """TrustedFrame count of the decodes in flight: the first silences, the last restores."""
 
     lock = threading.Lock()
     depth = 0

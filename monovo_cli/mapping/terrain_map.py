@@ -12,16 +12,16 @@ of its suspension). The map is written at the end of the run, so each keyframe's
 put on its plane as the whole chain knows it: the Rauch-Tung-Striebel backward pass over the
 keyframe planes, with the filter's own covariances, process noise and innovations
 (:class:`~monovo_cli.core.plane.belief.PlaneLink`); a point keeps its height off the plane
-(its relief) and moves along its ray, and goes into the world frame with its keyframe's
+(its terrain grid) and moves along its ray, and goes into the world frame with its keyframe's
 pose re-scaled with the smoothed planes, as trajectory.csv has it
-(:mod:`monovo_cli.mapping.hindsight`); motion.csv stays the filter's, as streamed. Without
+(:mod:`monovo_cli.mapping.smoothing`); motion.csv stays the filter's, as streamed. Without
 it the map's error sits in the first keyframes.
 
-**What the relief misses.** When a keyframe is left, its points are searched along their
+**What the terrain grid misses.** When a keyframe is left, its points are searched along their
 rays against its successor's image (or the last frame's) at the successor's pose
-(``refine="sweep"``, the default: :func:`~monovo_cli.mapping.depth.sweep_depths`): a point
-whose patch clearly matches at another height (a rock the 0.4 m relief does not see) moves
-there; the rest stay on the relief. ``refine=None`` keeps every point where tracking put
+(``refine="sweep"``, the default: :func:`~monovo_cli.mapping.terrain_depths.sweep_depths`): a point
+whose patch clearly matches at another height (a rock the 0.4 m terrain grid does not see) moves
+there; the rest stay on the terrain_grid. ``refine=None`` keeps every point where tracking put
 it.
 
 **The ground frame.** Heights are measured in the ground frame of the first keyframe's
@@ -45,8 +45,8 @@ from monovo_cli.core.keyframe import Keyframe
 from monovo_cli.core.plane.belief import PlaneLink
 from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.geometry.plane import Plane
-from monovo_cli.mapping.depth import sweep_depths
-from monovo_cli.mapping.hindsight import SmoothedDrive
+from monovo_cli.mapping.smoothing import SmoothedDrive
+from monovo_cli.mapping.terrain_depths import sweep_depths
 
 POINTS_PER_KEYFRAME = 10000  # at most this many of a keyframe's points (every k-th) are kept
 CELL = 0.05  # m, default cell of the height grid
@@ -99,10 +99,10 @@ class TerrainMap:
 
     ``plane``: init.yaml's ground in camera 0 (the ground frame until a keyframe comes); at
     most ``points_per_keyframe`` of a keyframe's finest points are kept (every k-th);
-    ``refine``: ``"sweep"`` (:func:`~monovo_cli.mapping.depth.sweep_depths`) or None.
+    ``refine``: ``"sweep"`` (:func:`~monovo_cli.mapping.terrain_depths.sweep_depths`) or None.
     Feed it with :meth:`add` per keyframe and :meth:`finish` with the last frame; the
     queries place the points on the keyframe planes and poses of a
-    :class:`~monovo_cli.mapping.hindsight.SmoothedDrive` when given one, else as tracked.
+    :class:`~monovo_cli.mapping.smoothing.SmoothedDrive` when given one, else as tracked.
     """
 
     def __init__(self, plane: Plane, points_per_keyframe: int = POINTS_PER_KEYFRAME, *,
@@ -120,7 +120,7 @@ class TerrainMap:
     @property
     def keyframes(self) -> list[tuple[int, _Chunk]]:
         """``(frame index, keyframe record)`` of every keyframe added, oldest first: what
-        :func:`~monovo_cli.mapping.hindsight.smooth_drive` takes as its ``keys``."""
+        :func:`~monovo_cli.mapping.smoothing.smooth_drive` takes as its ``keys``."""
         return [(k, self._chunks[k]) for k in sorted(self._chunks)]
 
     def ground_from_world(self, drive: SmoothedDrive | None = None) -> np.ndarray:

@@ -9,7 +9,7 @@ import numpy as np
 
 from monovo_cli.core.run import TrackRun
 from monovo_cli.geometry.plane import Plane
-from monovo_cli.mapping.hindsight import SmoothedDrive
+from monovo_cli.mapping.smoothing import SmoothedDrive
 from monovo_cli.mapping.terrain_map import TerrainMap
 
 

@@ -6,7 +6,7 @@ tracking run (:func:`track_sequence`) that writes what a
 flushed as frames are done; trajectory.csv / .tum are written atomically at the end, every
 ``checkpoint_every`` frames, and when the run is interrupted, so they always hold exactly
 the frames done, their poses re-scaled in hindsight over those frames
-(:mod:`monovo_cli.mapping.hindsight`) unless ``smooth`` is False.
+(:mod:`monovo_cli.mapping.smoothing`) unless ``smooth`` is False.
 """
 
 from __future__ import annotations

@@ -33,7 +33,7 @@ from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import InputError, TrackingError
 from monovo_cli.io.config import InitConfig, check_frame_size, load_init
 from monovo_cli.io.sources import Frame, FrameSource, find_init_yaml, open_frames, resolve_sequence
-from monovo_cli.mapping.hindsight import SmoothedDrive, smooth_drive
+from monovo_cli.mapping.smoothing import SmoothedDrive, smooth_drive
 from monovo_cli.mapping.terrain_map import TerrainMap
 
 log = logging.getLogger(__name__)

@@ -71,7 +71,7 @@ class KeyLevel:
     how far an update moves the image. ``grid`` holds the points' keyframe pixels as a remap
     grid (see ``pixel_grid``); ``plane_m`` (3,) is ``n / d`` of the plane they lie on
     (``plane_m . X = 1``; a zero vector when they do not lie on one: points lifted onto a
-    relief, :func:`~monovo_cli.core.estimator.relief.lifted_levels`) and ``box_rays`` (4, 3)
+    terrain grid, :func:`~monovo_cli.core.estimator.terrain_grid.lifted_levels`) and ``box_rays`` (4, 3)
     the rays K^-1 (u, v, 1) of the corners of the points' bounding box in the keyframe image.
     """
 

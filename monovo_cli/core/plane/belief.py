@@ -203,8 +203,8 @@ class PlaneLink:
     plane's covariance, J the plane block of :func:`propagation_jacobian`, P_pred the carried
     plane's covariance with the process noise).
 
-    For re-solving the distances in hindsight (:func:`monovo_cli.mapping.hindsight.smoothed_distances`):
-    ``carried_distance`` (m) the carried plane's distance, ``carried_variance`` (m^2) the
+    For re-solving the distances in hindsight (:func:`monovo_cli.mapping.smoothing.smoothed_distances`):
+    ``propagated_distance`` (m) the carried plane's distance, ``propagated_variance`` (m^2) the
     variance that carrying added to it (the motion's error, the tilt's, the process noise:
     the carried plane's distance variance less the previous keyframe's own, scaled),
     ``previous_variance`` (m^2) the previous keyframe's distance variance when it was left,
@@ -212,8 +212,8 @@ class PlaneLink:
 
     gain: np.ndarray
     innovation: np.ndarray
-    carried_distance: float = math.nan
-    carried_variance: float = math.nan
+    propagated_distance: float = math.nan
+    propagated_variance: float = math.nan
     previous_variance: float = math.nan
     mounting: tuple[float, float] = (math.nan, math.nan)
 
@@ -232,7 +232,7 @@ def smoothed_corrections(links: Sequence[PlaneLink | None]) -> list[np.ndarray]:
     return out
 
 
-def carried_plane(key_plane: Plane, key_covariance: np.ndarray, cur_from_key: np.ndarray,
+def propagated_plane(key_plane: Plane, key_covariance: np.ndarray, cur_from_key: np.ndarray,
                   motion_covariance: np.ndarray) -> PlaneBelief:
     """Belief (a) before its process noise: :func:`propagate`, a motion covariance that is not
     finite (no estimate of it) taken as zero."""
@@ -245,7 +245,7 @@ def keyframe_plane(carried: PlaneBelief, *, measured: PlaneBelief | None = None,
                    prior: PlaneBelief | None = None, distance_change: float = 0.0,
                    tilt_change: float = 0.0) -> PlaneBelief:
     """The plane of a new keyframe (in its camera): the MAP of (a) ``carried``
-    (:func:`carried_plane`) with process noise of std ``distance_change`` (m) added to its
+    (:func:`propagated_plane`) with process noise of std ``distance_change`` (m) added to its
     distance and ``tilt_change`` (rad) to each tilt, (b) ``measured`` and (c) ``prior``
     (module docstring)."""
     if distance_change > 0 or tilt_change > 0:

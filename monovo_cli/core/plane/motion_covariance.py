@@ -17,7 +17,7 @@ T_{k-1}_k share the keyframe plane, so with ``A = Ad(prev_from_key)`` the plane 
 ``A (S_k - S_{k-1}) P (S_k - S_{k-1})^T A^T`` to their independent estimation noises.
 
 P is the filter's belief, whose widths are set for the MAP's weights rather than measured;
-:class:`PlaneConsistency` calibrates it for reporting from how the keyframe planes agree at
+:class:`PlaneCovarianceCalibration` calibrates it for reporting from how the keyframe planes agree at
 the re-anchors (covariance matching on the distance; the tilt's model error, scaled by
 ``1 / (2 (1 - TILT_PERSISTENCE))`` because consecutive keyframe planes share most of it).
 Before the first re-anchor a plane the images did not confirm as exact gets the filter's
@@ -43,7 +43,7 @@ from monovo_cli.geometry.lie import adjoint, output_covariance
 from monovo_cli.geometry.plane import Plane, tangent_basis
 
 TILT_PERSISTENCE = 2.0 / 3.0  # rho: correlation of consecutive keyframe planes' tilt errors
-CONSISTENCY_WINDOW = 100  # re-anchors remembered by PlaneConsistency
+CONSISTENCY_WINDOW = 100  # re-anchors remembered by PlaneCovarianceCalibration
 CHI2_1_MEDIAN = 0.455  # median of a chi-square variable with 1 degree of freedom
 SENSITIVITY_POINTS = 32768  # the plane sensitivity's tilt columns sum over at most these
 
@@ -127,7 +127,7 @@ class MotionCovariance:
         return 0.5 * (cov + cov.T)
 
 
-class PlaneConsistency:
+class PlaneCovarianceCalibration:
     """Calibrates the keyframe plane's covariance for reporting from the re-anchors seen so far
     (the last CONSISTENCY_WINDOW; docs/algorithm.md section 3, "Covariance").
 
@@ -147,7 +147,7 @@ class PlaneConsistency:
     def reanchored(self, carried: PlaneBelief, new: PlaneBelief, prior: PlaneBelief,
                    distance_change: float) -> None:
         """One re-anchor: the old keyframe's plane ``carried`` to the new keyframe
-        (:func:`~monovo_cli.core.plane.belief.carried_plane`, before process noise), whose
+        (:func:`~monovo_cli.core.plane.belief.propagated_plane`, before process noise), whose
         plane is ``new`` (the MAP); ``prior`` the mounting prior, ``distance_change`` (m) the
         distance's process noise."""
         try:

@@ -28,7 +28,6 @@ from monovo_cli.core.plane.belief import (
     TILT_CHANGE_DEG,
     PlaneBelief,
     PlaneLink,
-    carried_plane,
     default_sigmas,
     exact_covariance,
     fuse,
@@ -36,6 +35,7 @@ from monovo_cli.core.plane.belief import (
     measured_tilt_std_deg,
     mounting_prior,
     process_noise,
+    propagated_plane,
     propagation_jacobian,
     tilt_chi2,
     tilt_std_deg,
@@ -43,7 +43,7 @@ from monovo_cli.core.plane.belief import (
     transported,
 )
 from monovo_cli.core.plane.fit import refine_plane_and_motion
-from monovo_cli.core.plane.motion_covariance import PlaneConsistency
+from monovo_cli.core.plane.motion_covariance import PlaneCovarianceCalibration
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import orthonormalize
@@ -63,7 +63,7 @@ class PlaneTracker:
                  sigma_deg: float | None = None) -> None:
         self.mounting = mounting_prior(plane, *default_sigmas(plane, sigma_distance, sigma_deg))
         self.covariance = self.mounting.covariance
-        self.consistency = PlaneConsistency()
+        self.consistency = PlaneCovarianceCalibration()
 
     @property
     def reported_covariance(self) -> np.ndarray:
@@ -132,15 +132,15 @@ class PlaneTracker:
         distance_change = DISTANCE_CHANGE * key.plane.distance
         tilt_change = np.radians(TILT_CHANGE_DEG)
         try:
-            carried = carried_plane(key.plane, self.covariance, cur_from_key, est.covariance)
+            carried = propagated_plane(key.plane, self.covariance, cur_from_key, est.covariance)
             belief = keyframe_plane(carried, measured=measured, prior=self.mounting,
                                     distance_change=distance_change, tilt_change=tilt_change)
             J = propagation_jacobian(key.plane, cur_from_key)[1][:, :3]
             predicted = carried.covariance + process_noise(distance_change, tilt_change)
             link = PlaneLink(self.covariance @ J.T @ np.linalg.inv(predicted),
                              to_chart(carried.plane, belief.plane),
-                             carried_distance=carried.plane.distance,
-                             carried_variance=float(predicted[0, 0]
+                             propagated_distance=carried.plane.distance,
+                             propagated_variance=float(predicted[0, 0]
                                                     - J[0, 0] ** 2 * self.covariance[0, 0]),
                              previous_variance=float(self.covariance[0, 0]),
                              mounting=(self.mounting.plane.distance,

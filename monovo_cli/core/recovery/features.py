@@ -30,7 +30,7 @@ normalised ``H_n = K^-1 H K = (R + t' n^T) / lambda`` for an unknown ``lambda !=
    ``lambda > 0``.
 3. Scale. ``lambda = <R E, A> / <A, A>`` (least squares for the fixed ``R``); for an exact
    homography ``A``'s two singular values are both ``1 / lambda``. Their ratio (``<= 1``) is
-   reported as ``plane_consistency``: far below 1 means the matched surface is not the plane.
+   reported as ``planarity``: far below 1 means the matched surface is not the plane.
 4. Translation. Applying ``lambda H_n`` to ``n`` itself: ``lambda H_n n = R n + t'``, so
    ``t' = (lambda H_n - R) n`` and ``t = d t'`` (the known distance fixes the metric scale).
 5. Checks. Cheirality: the inliers' plane points ``X_key`` must lie in front of both cameras.
@@ -85,7 +85,7 @@ class FeatureMotion:
     keyframe pixels to undistorted current pixels (full resolution, scale 1 at [2, 2]);
     ``matches`` the matches given to RANSAC, ``inliers`` the ones kept; ``rms_px`` the inliers'
     reprojection error under ``cur_from_key`` (undistorted full-resolution pixels);
-    ``plane_consistency`` in (0, 1], 1 for an exact plane homography; ``key_rays`` /
+    ``planarity`` in (0, 1], 1 for an exact plane homography; ``key_rays`` /
     ``cur_rays`` (inliers, 3) the inliers' undistorted viewing rays (z = 1) in either frame.
     """
 
@@ -94,7 +94,7 @@ class FeatureMotion:
     matches: int
     inliers: int
     rms_px: float
-    plane_consistency: float
+    planarity: float
     key_rays: np.ndarray
     cur_rays: np.ndarray
 
@@ -201,7 +201,7 @@ def _match(key: Features, cur: Features, ratio: float) -> tuple[np.ndarray, np.n
 
 def pose_from_homography(H_n: np.ndarray, plane: Plane, key_rays: np.ndarray
                          ) -> tuple[np.ndarray, float] | None:
-    """``(cur_from_key 4x4, plane_consistency)`` from a normalised plane homography.
+    """``(cur_from_key 4x4, planarity)`` from a normalised plane homography.
 
     ``H_n`` (3x3, any scale and sign) maps keyframe rays to current rays,
     ``H_n ~ R + t n^T / d``; ``key_rays`` (N, 3) are rays of keyframe points on ``plane``
@@ -295,7 +295,7 @@ def motion_from_features(key: Features, cur: Features, camera: PinholeCamera, pl
         return None
     H_n = np.linalg.solve(K, H @ K)
     got = pose_from_homography(H_n, plane, key.rays[ki][inl])
-    if got is None or got[1] < options.min_plane_consistency:
+    if got is None or got[1] < options.min_planarity:
         return None
     T, consistency = got
     X_key = plane.intersect(key.rays[ki][inl])

@@ -1,18 +1,18 @@
-"""Bridging frames the direct fit cannot estimate with the feature hypothesis (recovery).
+"""LostFrameRecovery frames the direct fit cannot estimate with the feature hypothesis (recovery).
 
 A lost frame carries the tracker's prediction, the last accepted motion repeated (constant
 velocity). A rover that stops driving to turn in place breaks that prediction at the worst
 moment, and the re-initialisations that follow anchor their fresh keyframes where the
-prediction put them (docs/algorithm.md section 8, "Bridging a lost frame"). The feature
+prediction put them (docs/algorithm.md section 8, "LostFrameRecovery a lost frame"). The feature
 hypothesis (:mod:`monovo_cli.core.recovery.features`) does not depend on the motion's size,
 so it bridges them:
 
-* a :class:`Reference` is the latest frame whose pose the tracker trusts: the keyframe
+* a :class:`TrustedFrame` is the latest frame whose pose the tracker trusts: the keyframe
   while tracking, a bridged lost frame while recovering. The current frame's hypothesis is
   computed against it, over the keyframe's plane carried to it, and chained through its
   pose to ``cur_from_key`` (:func:`bridge`);
 * a lost frame keeps the prediction if the prediction reprojects the hypothesis' inliers
-  about as well as the hypothesis does (:meth:`Bridge.agrees`), otherwise it takes the
+  about as well as the hypothesis does (:meth:`ChainedHypothesis.agrees`), otherwise it takes the
   hypothesis' pose: the features veto a prediction they contradict, and do not replace one
   they confirm (the prediction is the smoother of the two over small motions);
 * a lost frame so bridged is the next frame's reference: after two MER steps the keyframe
@@ -36,7 +36,7 @@ AGREE_RMS_FACTOR = 2.0  # a pose agrees with a hypothesis within this x its RMS 
 
 
 @dataclass(frozen=True)
-class Reference:
+class TrustedFrame:
     """A frame the feature hypothesis is computed against: ``image`` (H, W) grey and
     ``from_key`` (4x4) its pose ``ref_from_key`` relative to the current keyframe (identity
     for the keyframe itself)."""
@@ -46,7 +46,7 @@ class Reference:
 
 
 @dataclass(frozen=True)
-class Bridge:
+class ChainedHypothesis:
     """The current frame's feature hypothesis, chained to the keyframe.
 
     ``cur_from_key`` (4x4) = ``motion.cur_from_key`` (cur_from_ref) @ ``ref_from_key``;
@@ -82,9 +82,9 @@ class Bridge:
         return self.reprojection_px(cur_from_key, camera) <= limit
 
 
-def bridge(ref: Reference, image: np.ndarray, camera: PinholeCamera, key_plane: Plane, *,
+def chained_hypothesis(ref: TrustedFrame, image: np.ndarray, camera: PinholeCamera, key_plane: Plane, *,
            options: FeatureOptions, mask: np.ndarray | None = None,
-           region: tuple[int, int, int, int] | None = None) -> Bridge | None:
+           region: tuple[int, int, int, int] | None = None) -> ChainedHypothesis | None:
     """The feature hypothesis of ``image`` (H, W) against ``ref``, chained to the keyframe.
 
     ``key_plane`` is the ground in the keyframe camera; ``options``, ``mask`` and ``region``
@@ -96,12 +96,12 @@ def bridge(ref: Reference, image: np.ndarray, camera: PinholeCamera, key_plane: 
                             options=options)
     if motion is None:
         return None
-    return Bridge(image, motion.cur_from_key @ ref.from_key, motion, ref_plane,
+    return ChainedHypothesis(image, motion.cur_from_key @ ref.from_key, motion, ref_plane,
                   np.array(ref.from_key, dtype=float),
                   options.ransac_px * 2.0 ** options.level_for(camera))
 
 
-class Bridging:
+class LostFrameRecovery:
     """The tracker's side: the reference frame, and the hypothesis of the frame at hand.
 
     ``camera`` the frames' camera; ``options`` the feature settings (``TrackOptions.features``),
@@ -113,17 +113,17 @@ class Bridging:
                  mask: np.ndarray | None = None,
                  region: tuple[int, int, int, int] | None = None) -> None:
         self.camera, self.mask, self.region, self.options = camera, mask, region, options
-        self.reference: Reference | None = None
-        self.current: tuple[int, Bridge] | None = None  # (frame index, its hypothesis)
+        self.reference: TrustedFrame | None = None
+        self.current: tuple[int, ChainedHypothesis] | None = None  # (frame index, its hypothesis)
 
     def anchored(self, image: np.ndarray) -> None:
         """A keyframe was anchored on ``image``: it is the reference from now on."""
-        self.reference = Reference(image, np.eye(4))
+        self.reference = TrustedFrame(image, np.eye(4))
 
     def hypothesis(self, index: int, image: np.ndarray, key_plane: Plane) -> np.ndarray | None:
         """``cur_from_key`` (4x4) of frame ``index`` (``image`` (H, W)) by the features
         against the reference, ``key_plane`` the keyframe's plane; None without one."""
-        b = None if self.reference is None else bridge(
+        b = None if self.reference is None else chained_hypothesis(
             self.reference, image, self.camera, key_plane, options=self.options, mask=self.mask,
             region=self.region)
         self.current = None if b is None else (index, b)
@@ -131,11 +131,11 @@ class Bridging:
 
     def lost_pose(self, index: int, prediction: np.ndarray) -> np.ndarray:
         """The pose ``cur_from_key`` (4x4) of lost frame ``index``: ``prediction``, or its
-        hypothesis where the two disagree (:meth:`Bridge.agrees`). A frame with a hypothesis
+        hypothesis where the two disagree (:meth:`ChainedHypothesis.agrees`). A frame with a hypothesis
         becomes the reference: its pose was confirmed or given by the features."""
         if self.current is None or self.current[0] != index:
             return prediction
         b = self.current[1]
         pose = prediction if b.agrees(prediction, self.camera) else orthonormalize(b.cur_from_key)
-        self.reference = Reference(b.image, pose)
+        self.reference = TrustedFrame(b.image, pose)
         return pose

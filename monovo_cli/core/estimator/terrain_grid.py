@@ -1,5 +1,5 @@
-"""Ground that is not a plane: a keyframe's relief, estimated with the motion
-(docs/algorithm.md section 9, "The relief").
+"""Ground that is not a plane: a keyframe's terrain grid, estimated with the motion
+(docs/algorithm.md section 9, "The terrain_grid").
 
 The paper's "future work" made concrete: the keyframe's ground is its plane plus a **height
 field on a grid of vertices** over the model rectangle (a mesh of quads, bilinear within
@@ -8,7 +8,7 @@ along its ray: on the plane ``n . X = d`` a point at height ``h`` above it (towa
 camera) is ``X = r (d - h) / (n . r)``, ``r = K^-1 (u, v, 1)``, exactly linear in ``h``,
 and ``h`` is the bilinear blend of its cell's four vertex heights.
 
-When a keyframe is left, :func:`refine_pose_and_relief` solves the two-view problem of the
+When a keyframe is left, :func:`refine_pose_and_terrain_grid` solves the two-view problem of the
 keyframe and the frame that replaces it: the pose (with the affine brightness model) and
 every vertex height, jointly, by Gauss-Newton on the intensity differences of a subsample of
 the finest level's points (Huber weights, the scale from the median absolute deviation),
@@ -16,10 +16,10 @@ with the priors of :func:`_prior`: the heights stay near their own best-fit plan
 tilt is nearly free (it takes up the keyframe plane's tilt error) and which meets the ground
 at the camera's foot, where the keyframe plane's distance is measured (the gauge of scale);
 curvature is penalised, which also carries the heights into cells no point falls in. A
-chi-square test (:attr:`Relief.significant`, run first on a quick, coarse solve) keeps the
-plane where the images show no relief. Otherwise the pose comes from all the finest level's
-points lifted onto the relief (the estimator's warp of the points themselves), so the chain
-of keyframes no longer inherits the plane's model error, and the relief's shape is carried
+chi-square test (:attr:`TerrainGrid.significant`, run first on a quick, coarse solve) keeps the
+plane where the images show no terrain_grid. Otherwise the pose comes from all the finest level's
+points lifted onto the terrain grid (the estimator's warp of the points themselves), so the chain
+of keyframes no longer inherits the plane's model error, and the terrain_grid's shape is carried
 to the next keyframe (:func:`carried`), whose frames are tracked against it.
 
 Derivatives (left perturbation ``T <- exp(delta^) T`` of ``cur_from_key``, ``Xc = T X``):
@@ -48,13 +48,13 @@ MAX_VERTICES_PER_SIDE = 32
 HEIGHT_SIGMA = 0.05  # m: prior std of a vertex's height off the heights' best-fit plane
 CURVATURE_SIGMA = 0.02  # m: prior std of a second difference of the heights
 SAMPLE_POINTS = 20000  # points of the finest level used for the joint solution
-QUICK_POINTS, QUICK_ITERATIONS, QUICK_CELL = 4000, 2, 0.8  # the test for a relief at all
+QUICK_POINTS, QUICK_ITERATIONS, QUICK_CELL = 4000, 2, 0.8  # the test for a terrain grid at all
 ITERATIONS = 4
 HEIGHT_TOLERANCE = 5e-4  # m: the iterations stop when no height moves more (and the pose < 0.01 mm)
 TILT_SIGMA_DEG = 2.0  # prior std of the heights' own tilt off the keyframe plane
 FOOT_SIGMA = 0.001  # m: the heights' best-fit plane meets the camera's foot within this
-SIGNIFICANCE = 3.0  # sigma of the chi-square over the heights (Relief.significant)
-MIN_EXPLAINED = 0.3  # chi-square per point a relief must reach (Relief.significant)
+SIGNIFICANCE = 3.0  # sigma of the chi-square over the heights (TerrainGrid.significant)
+MIN_EXPLAINED = 0.3  # chi-square per point a terrain grid must reach (TerrainGrid.significant)
 
 
 def plane_axes(plane: Plane) -> np.ndarray:
@@ -69,7 +69,7 @@ def plane_axes(plane: Plane) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class Relief:
+class TerrainGrid:
     """Heights ``h`` (ny, nx) m above ``plane`` (toward the camera; keyframe camera) at the
     vertices of a grid on it: vertex ``[j, i]`` at ``(x0 + i cell, y0 + j cell)`` along the
     plane's (right, forward) axes (:func:`plane_axes`), ``origin = (x0, y0)``."""
@@ -88,14 +88,14 @@ class Relief:
         noise gives over ``h.size`` heights by SIGNIFICANCE sigma, and it is at least
         MIN_EXPLAINED per point of the ``points`` it was measured on. On real images most
         of the residual is other model error (lens, lighting, objects off the ground): a
-        relief that explains little of it is significant but bends to that error
+        terrain grid that explains little of it is significant but bends to that error
         (docs/algorithm.md section 9)."""
         dof = self.h.size
         return (self.chi2 > dof + SIGNIFICANCE * np.sqrt(2.0 * dof)
                 and self.chi2 >= MIN_EXPLAINED * self.points)
 
     @classmethod
-    def flat(cls, plane: Plane, X: np.ndarray, cell: float | None = None) -> Relief:
+    def flat(cls, plane: Plane, X: np.ndarray, cell: float | None = None) -> TerrainGrid:
         """Zero heights on a grid of ``cell`` m covering points ``X`` (N, 3) on the plane
         (coarser where that would take more than MAX_VERTICES_PER_SIDE vertices)."""
         xy = X @ plane_axes(plane).T
@@ -135,7 +135,7 @@ class Relief:
         return j0 * nx + i0, s - i0, t - j0
 
     def heights(self, X: np.ndarray) -> np.ndarray:
-        """The relief's height (N,) m under points ``X`` (N, 3) on the plane."""
+        """The terrain_grid's height (N,) m under points ``X`` (N, 3) on the plane."""
         first, fs, ft = self._cells(X)
         h = self.h.ravel()
         nx = self.h.shape[1]
@@ -144,26 +144,27 @@ class Relief:
         return top + ft * (bottom - top)
 
     def lift(self, X: np.ndarray) -> np.ndarray:
-        """Points ``X`` (N, 3) on the plane moved along their rays to the relief."""
+        """Points ``X`` (N, 3) on the plane moved along their rays to the terrain_grid."""
         return X * ((self.plane.distance - self.heights(X)) / (X @ self.plane.normal))[:, None]
 
 
-def carried(relief: Relief, cur_from_key: np.ndarray, plane: Plane, X: np.ndarray) -> Relief:
-    """``relief`` (of a keyframe) seen from a new keyframe at ``cur_from_key`` (4x4): a
-    relief on the new keyframe's ``plane`` (its camera) over its points ``X`` (N, 3, on that
-    plane), each vertex at the height of the old relief's surface under it (the old grid's
+def transfer_terrain_grid(terrain_grid: TerrainGrid, cur_from_key: np.ndarray, plane: Plane,
+                          X: np.ndarray) -> TerrainGrid:
+    """``terrain_grid`` (of a keyframe) seen from a new keyframe at ``cur_from_key`` (4x4): a
+    terrain grid on the new keyframe's ``plane`` (its camera) over its points ``X`` (N, 3, on that
+    plane), each vertex at the height of the old terrain_grid's surface under it (the old grid's
     edge values beyond its extent)."""
     step = max(1, len(X) // 5000)
-    new = Relief.flat(plane, X[::step])  # (points beyond a sample's extent: the edge heights)
+    new = TerrainGrid.flat(plane, X[::step])  # (points beyond a sample's extent: the edge heights)
     ny, nx = new.h.shape
     ax = plane_axes(plane)
     V = new.vertices()
     P = plane.distance * plane.normal + V @ ax  # the vertices, new camera
     R, t = cur_from_key[:3, :3], cur_from_key[:3, 3]
-    n0, d0 = relief.plane.normal, relief.plane.distance
+    n0, d0 = terrain_grid.plane.normal, terrain_grid.plane.distance
     Q = (P - t) @ R  # in the old keyframe's camera
     Q = Q + (d0 - Q @ n0)[:, None] * n0  # onto the old plane, along its normal
-    S = (Q - relief.heights(Q)[:, None] * n0) @ R.T + t  # the old surface, new camera
+    S = (Q - terrain_grid.heights(Q)[:, None] * n0) @ R.T + t  # the old surface, new camera
     new = replace(new, h=(plane.distance - S @ plane.normal).reshape(ny, nx))
     # Its shape only: the plane through the heights under the new points is taken out (the
     # new keyframe's plane, the MAP of the plane beliefs, holds distance and tilt).
@@ -174,9 +175,11 @@ def carried(relief: Relief, cur_from_key: np.ndarray, plane: Plane, X: np.ndarra
     return replace(new, h=new.h - flat.reshape(ny, nx))
 
 
-def lifted_levels(levels: tuple[KeyLevel, ...], relief: Relief) -> tuple[KeyLevel, ...]:
-    """A keyframe's levels (points on ``relief.plane``) with every point lifted onto the relief."""
-    return tuple(KeyLevel.from_points(replace(kl.points, X=relief.lift(relief.plane.intersect(kl.points.X))))
+def lifted_levels(levels: tuple[KeyLevel, ...], terrain_grid: TerrainGrid) -> tuple[KeyLevel, ...]:
+    """A keyframe's levels (points on ``terrain_grid.plane``) with every point lifted onto
+    the terrain grid."""
+    lift = terrain_grid.lift
+    return tuple(KeyLevel.from_points(replace(kl.points, X=lift(terrain_grid.plane.intersect(kl.points.X))))
                  for kl in levels)
 
 
@@ -191,9 +194,9 @@ def _curvature_normal(ny: int, nx: int) -> np.ndarray:
     return np.kron(np.eye(ny), one_side(nx)) + np.kron(one_side(ny), np.eye(nx))
 
 
-def _prior(relief: Relief, X: np.ndarray, idx: np.ndarray, bw: np.ndarray) -> np.ndarray:
-    """The heights' prior information (V, V) (V = ``relief.h.size``), in m^-2, for the points
-    ``X`` (N, 3, on the plane) with blend ``idx``, ``bw`` (:meth:`Relief.weights`):
+def _prior(terrain_grid: TerrainGrid, X: np.ndarray, idx: np.ndarray, bw: np.ndarray) -> np.ndarray:
+    """The heights' prior information (V, V) (V = ``terrain_grid.h.size``), in m^-2, for the points
+    ``X`` (N, 3, on the plane) with blend ``idx``, ``bw`` (:meth:`TerrainGrid.weights`):
 
     * each vertex's departure from the heights' best-fit plane (over the vertices), std
       HEIGHT_SIGMA; each second difference, std CURVATURE_SIGMA;
@@ -205,14 +208,14 @@ def _prior(relief: Relief, X: np.ndarray, idx: np.ndarray, bw: np.ndarray) -> np
       keyframe plane into a scale error, the points lying metres ahead (docs/algorithm.md
       section 9, "the gauge of scale").
     """
-    ny, nx = relief.h.shape
+    ny, nx = terrain_grid.h.shape
     V = ny * nx
-    C = np.column_stack([np.ones(V), relief.vertices()])
+    C = np.column_stack([np.ones(V), terrain_grid.vertices()])
     Cp = np.linalg.solve(C.T @ C, C.T)  # (3, V): coefficients of the heights' best-fit plane
     Q = np.eye(V) - C @ Cp
     prior = Q.T @ Q / HEIGHT_SIGMA ** 2 + _curvature_normal(ny, nx) / CURVATURE_SIGMA ** 2
     prior += Cp[1:].T @ Cp[1:] / np.tan(np.radians(TILT_SIGMA_DEG)) ** 2
-    xy = X @ plane_axes(relief.plane).T
+    xy = X @ plane_axes(terrain_grid.plane).T
     A = np.column_stack([np.ones(len(xy)), xy])
     q = np.linalg.solve(A.T @ A, A.T)[0]  # (N,): the intercept of a plane fit to the points
     foot = np.zeros(V)
@@ -221,7 +224,7 @@ def _prior(relief: Relief, X: np.ndarray, idx: np.ndarray, bw: np.ndarray) -> np
     return prior + np.outer(foot, foot) / FOOT_SIGMA ** 2
 
 
-def relief_rows(camera, Xc: np.ndarray, gx: np.ndarray, gy: np.ndarray,
+def height_rows(camera, Xc: np.ndarray, gx: np.ndarray, gy: np.ndarray,
                 dXc_dh: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The derivatives of the intensity at the projection of points ``Xc`` (N, 3, current
     camera; image gradients ``gx``, ``gy`` (N,) there, grey levels per px): the observation
@@ -233,26 +236,26 @@ def relief_rows(camera, Xc: np.ndarray, gx: np.ndarray, gy: np.ndarray,
     return o, np.einsum("kn,nk->n", o[:3], dXc_dh)
 
 
-def solve_relief(level: KeyLevel, plane: Plane, image: np.ndarray,
-                 cur_from_key: np.ndarray, *, start: Relief | None = None,
+def solve_terrain_grid(level: KeyLevel, plane: Plane, image: np.ndarray,
+                 cur_from_key: np.ndarray, *, start: TerrainGrid | None = None,
                  gain: float = 1.0, bias: float = 0.0,
                  options: EstimatorOptions | None = None, iterations: int | None = None,
                  sample_points: int | None = None, cell: float | None = None
-                 ) -> tuple[Relief, np.ndarray, float, float]:
+                 ) -> tuple[TerrainGrid, np.ndarray, float, float]:
     """The joint Gauss-Newton of the module docstring on the finest ``level`` (points on
-    ``plane``, or lifted onto the relief ``start`` on it, whose heights the solution starts
+    ``plane``, or lifted onto the terrain grid ``start`` on it, whose heights the solution starts
     from) and the current frame's finest ``image`` from ``cur_from_key`` (4x4):
-    ``(relief, cur_from_key, gain, bias)``."""
+    ``(terrain grid, cur_from_key, gain, bias)``."""
     opts = options or EstimatorOptions()
     iterations = ITERATIONS if iterations is None else iterations
     pts = level.points
     step = max(1, len(pts) // (SAMPLE_POINTS if sample_points is None else sample_points))
     X0 = plane.intersect(pts.X[::step])  # (the points' rays onto the plane)
     I_key = pts.intensity[::step].astype(np.float64)
-    relief = Relief.flat(plane, X0, cell) if start is None else start
-    ny, nx = relief.h.shape
+    terrain_grid = TerrainGrid.flat(plane, X0, cell) if start is None else start
+    ny, nx = terrain_grid.h.shape
     V = ny * nx
-    idx, bw = relief.weights(X0)
+    idx, bw = terrain_grid.weights(X0)
     # Points sorted by cell (named by its first vertex), so that per-cell sums are one
     # reduceat; a cell's sums go to its 4 vertices (offsets 0, 1, nx, nx + 1).
     order = np.argsort(idx[:, 0], kind="stable")
@@ -263,11 +266,11 @@ def solve_relief(level: KeyLevel, plane: Plane, image: np.ndarray,
     bwT = np.ascontiguousarray(bw.T, dtype=np.float32)
     rays = X0 / X0[:, 2:3]
     dz_dh = -rays / (rays @ plane.normal)[:, None]  # dX/dh (N, 3), keyframe camera
-    prior = _prior(relief, X0, idx, bw)
+    prior = _prior(terrain_grid, X0, idx, bw)
     gx_img, gy_img = sobel_gradient(np.ascontiguousarray(image, dtype=np.float32))
     cam = pts.camera
     T = np.array(cur_from_key, dtype=np.float64)
-    h = relief.h.ravel().copy()
+    h = terrain_grid.h.ravel().copy()
     Hhh = Hph = Hpp = None
     sigma2 = 1.0
     for _ in range(iterations):
@@ -285,7 +288,7 @@ def solve_relief(level: KeyLevel, plane: Plane, image: np.ndarray,
                            tukey_c=opts.tukey_c, scale=mad_scale(r.astype(np.float32), ok))[0]
         w = np.where(ok, w, 0.0).astype(np.float64)
         sigma2 = max(float(np.sum(w * r * r) / max(np.sum(w), 1.0)), 1e-6)
-        o, jh = relief_rows(cam, np.where(ok[:, None], Xc, 1.0), np.where(ok, gx, 0.0),
+        o, jh = height_rows(cam, np.where(ok[:, None], Xc, 1.0), np.where(ok, gx, 0.0),
                             np.where(ok, gy, 0.0), dz_dh @ T[:3, :3].T)
         Jp = np.vstack([o, -I_key[None, :], -np.ones((1, len(r)))])  # (8, N)
         # Normal equations over (pose 8, heights V); a point's height column is jh blended
@@ -329,35 +332,35 @@ def solve_relief(level: KeyLevel, plane: Plane, image: np.ndarray,
             chi2 = float(h @ M @ h) / sigma2
         except np.linalg.LinAlgError:
             chi2 = 0.0
-    return (replace(relief, h=h.reshape(ny, nx), chi2=chi2, points=len(X0)), T, float(gain),
+    return (replace(terrain_grid, h=h.reshape(ny, nx), chi2=chi2, points=len(X0)), T, float(gain),
             float(bias))
 
 
-def refine_pose_and_relief(level: KeyLevel, plane: Plane, image: np.ndarray,
+def refine_pose_and_terrain_grid(level: KeyLevel, plane: Plane, image: np.ndarray,
                            est: Estimate, options: EstimatorOptions, *,
-                           start: Relief | None = None
-                           ) -> tuple[Estimate, Relief, KeyLevel | None]:
-    """:func:`solve_relief` from the estimate ``est`` over the plane (or over ``start``, the
-    relief the level's points were lifted onto), then the pose from all the level's points
-    lifted onto the relief found: ``(estimate, relief, the lifted level)``. ``est`` comes back
-    (with the relief found, and no level) where the images do not support the relief
-    (:attr:`Relief.significant`: ground that is a plane, where the heights would only add
+                           start: TerrainGrid | None = None
+                           ) -> tuple[Estimate, TerrainGrid, KeyLevel | None]:
+    """:func:`solve_terrain_grid` from the estimate ``est`` over the plane (or over ``start``, the
+    terrain grid the level's points were lifted onto), then the pose from all the level's points
+    lifted onto the terrain grid found: ``(estimate, terrain grid, the lifted level)``. ``est`` comes back
+    (with the terrain grid found, and no level) where the images do not support the terrain grid
+    (:attr:`TerrainGrid.significant`: ground that is a plane, where the heights would only add
     their noise) or the pose does not converge."""
     try:
-        if start is None:  # first a quick look: is there a relief at all? (most ground: no)
-            quick = solve_relief(level, plane, image, est.cur_from_key, gain=est.gain,
+        if start is None:  # first a quick look: is there a terrain grid at all? (most ground: no)
+            quick = solve_terrain_grid(level, plane, image, est.cur_from_key, gain=est.gain,
                                  bias=est.bias, options=options, iterations=QUICK_ITERATIONS,
                                  sample_points=QUICK_POINTS, cell=QUICK_CELL)[0]
             if not quick.significant:
                 return est, quick, None
-        relief, T, gain, bias = solve_relief(level, plane, image, est.cur_from_key, start=start,
+        terrain_grid, T, gain, bias = solve_terrain_grid(level, plane, image, est.cur_from_key, start=start,
                                              gain=est.gain, bias=est.bias, options=options)
     except (ValueError, np.linalg.LinAlgError):  # degenerate points (e.g. all on one line)
-        return est, Relief.flat(plane, plane.intersect(level.points.X)), None
-    if not relief.significant:
-        return est, relief, None
-    lifted, = lifted_levels((level,), relief)
+        return est, TerrainGrid.flat(plane, plane.intersect(level.points.X)), None
+    if not terrain_grid.significant:
+        return est, terrain_grid, None
+    lifted, = lifted_levels((level,), terrain_grid)
     new = estimate_motion((lifted,), (image,), T, options=options, gain=gain, bias=bias)
     if not new.converged or not np.all(np.isfinite(new.cur_from_key)):
-        return est, relief, None
-    return new, relief, lifted
+        return est, terrain_grid, None
+    return new, terrain_grid, lifted

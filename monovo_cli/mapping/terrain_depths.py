@@ -1,12 +1,12 @@
 """The terrain products' depth sweep: observation points moved along their rays to where two
 images agree.
 
-A keyframe's finest observation points lie on its relief (:mod:`monovo_cli.core.estimator.relief`,
-a height field on a coarse grid). What the relief misses are small objects, a rock the grid
-does not see, too far from the relief for a Gauss-Newton step under a prior toward it; so
+A keyframe's finest observation points lie on its terrain grid (:mod:`monovo_cli.core.estimator.terrain_grid`,
+a height field on a coarse grid). What the terrain grid misses are small objects, a rock the grid
+does not see, too far from the terrain grid for a Gauss-Newton step under a prior toward it; so
 :func:`sweep_depths` searches each point's height along its ray instead (a plane sweep)
 against a second image at a known pose, and moves the point only where the images say so
-clearly (docs/algorithm.md section 9, "What the relief misses: rocks"). It feeds the terrain
+clearly (docs/algorithm.md section 9, "What the terrain grid misses: rocks"). It feeds the terrain
 products (:mod:`monovo_cli.mapping.terrain_map`), not the tracking.
 """
 
@@ -29,7 +29,7 @@ def sweep_depths(camera: PinholeCamera, plane: Plane, X: np.ndarray, key_image: 
                  image: np.ndarray, cur_from_key: np.ndarray, *,
                  heights: tuple[float, float, float] = SWEEP_HEIGHTS, drop: float = SWEEP_DROP,
                  match: float = SWEEP_MATCH) -> tuple[np.ndarray, np.ndarray]:
-    """Points ``X`` (N, 3) of a keyframe (m, its camera; on its relief, ``plane`` its plane)
+    """Points ``X`` (N, 3) of a keyframe (m, its camera; on its terrain grid, ``plane`` its plane)
     moved along their rays to the height where the keyframe's ``key_image`` and the current
     ``image`` (H, W) float32 at pose ``cur_from_key`` (4x4) agree, where they say so clearly.
 

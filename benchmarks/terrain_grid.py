@@ -1,8 +1,8 @@
-"""The relief model (issue 14), measured: why the plane fails, and one keyframe pair in detail.
+"""The terrain grid model (issue 14), measured: why the plane fails, and one keyframe pair in detail.
 
-    python -m benchmarks.relief                          # both sections (~6 min)
-    python -m benchmarks.relief --sections pair
-    python -m benchmarks.relief --sections oracle --frames 300
+    python -m benchmarks.terrain_grid                          # both sections (~6 min)
+    python -m benchmarks.terrain_grid --sections pair
+    python -m benchmarks.terrain_grid --sections oracle --frames 300
 
 Uses the drives of ``benchmarks.terrain`` (``monovo synth --preset drive --terrain KIND``,
 512x512, noise variance 10, seed 0), rendered into ``--renders`` (reused when present).
@@ -12,12 +12,12 @@ Uses the drives of ``benchmarks.terrain`` (``monovo synth --preset drive --terra
   terrain.npz's height field from the keyframe's true pose); with them on the true
   best-fit plane of those depths. If the heading error survives the true plane but not the
   true depths, it is the plane's model error, not its estimate. Then with default options
-  (the relief).
+  (the terrain grid).
 * **pair** -- keyframe 100 and frame 112 of each drive (about 0.5 m apart), the keyframe
   plane the best-fit plane of the true depths of its points: the pose error of the planar
-  estimate and of ``refine_pose_and_relief`` (translation mm, rotation deg against the true
+  estimate and of ``refine_pose_and_terrain_grid`` (translation mm, rotation deg against the true
   relative pose), the height error of the points (RMS against the true surface, cm), the
-  relief's chi-square over its heights and whether it is used; and the same with the
+  terrain_grid's chi-square over its heights and whether it is used; and the same with the
   keyframe plane pitched by +-1 deg (its distance kept), the case that decided the gauge.
 """
 
@@ -34,7 +34,7 @@ import monovo_cli.core.odometry as odometry
 import monovo_cli.core.plane.tracker as plane_tracker
 from benchmarks.common import machine, one_core
 from monovo_cli.core.estimator.estimate import KeyLevel, estimate_motion
-from monovo_cli.core.estimator.relief import plane_axes, refine_pose_and_relief
+from monovo_cli.core.estimator.terrain_grid import plane_axes, refine_pose_and_terrain_grid
 from monovo_cli.core.keyframe import build_keyframe
 from monovo_cli.core.options import EstimatorOptions, TrackOptions
 from monovo_cli.geometry.lie import se3_inv, so3_exp, so3_log
@@ -132,11 +132,11 @@ def oracle_section(renders: Path, frames: int) -> None:
     print(f"### Why the plane fails: the rolling drive ({frames} frames), keyframe points swapped\n")
     print("| keyframe points | final error (% of distance) | heading error (deg) | lost | "
           "frames/s (one core, in memory) |\n| --- | --- | --- | --- | --- |")
-    plane_only = TrackOptions(relief=False)
+    plane_only = TrackOptions(terrain_grid=False)
     for label, opts, points in (("on the tracker's plane (`--plane-only`)", plane_only, None),
                                 ("on the true best-fit plane of their ground", plane_only, "plane"),
                                 ("at their true depths", plane_only, "depth"),
-                                ("on the relief (default options)", TrackOptions(), None)):
+                                ("on the terrain grid (default options)", TrackOptions(), None)):
         print(f"| {label} | {tracked(seq, frames, opts, points)} |", flush=True)
     print()
 
@@ -147,8 +147,8 @@ def oracle_section(renders: Path, frames: int) -> None:
 def pair_section(renders: Path, frames: int, k: int = 100, j: int = 112) -> None:
     print(f"### One keyframe pair: frame {k} -> {j}, keyframe plane fitted to the true ground "
           "(pitched: turned about its right axis, distance kept)\n")
-    print("| terrain | keyframe plane | planar pose error (mm / deg) | relief pose error (mm / deg) "
-          "| point heights RMS, plane / relief (cm) | chi-square / heights | relief used | ms |")
+    print("| terrain | keyframe plane | planar pose error (mm / deg) | terrain grid pose error (mm / deg) "
+          "| point heights RMS, plane / terrain grid (cm) | chi-square / heights | terrain grid used | ms |")
     print("| --- | --- | --- | --- | --- | --- | --- | --- |")
     opts = EstimatorOptions()
     for kind in TERRAINS:
@@ -169,7 +169,7 @@ def pair_section(renders: Path, frames: int, k: int = 100, j: int = 112) -> None
             pyr = build_pyramid(img_j, len(key.levels))
             est = estimate_motion(key.levels, pyr, truth, options=opts)
             t0 = time.perf_counter()
-            new, relief, lifted = refine_pose_and_relief(key.levels[0], pl, pyr[0], est, opts)
+            new, terrain_grid, lifted = refine_pose_and_terrain_grid(key.levels[0], pl, pyr[0], est, opts)
             ms = 1000 * (time.perf_counter() - t0)
             X = pts.X if lifted is None else lifted.points.X
             heights = [100 * float(np.sqrt(np.mean(((Y - Xt) @ plane.normal) ** 2)))
@@ -177,7 +177,8 @@ def pair_section(renders: Path, frames: int, k: int = 100, j: int = 112) -> None
             print(f"| {kind} | {'fitted' if pitch == 0 else f'pitched {pitch:+g} deg'} | "
                   "{:.2f} / {:.4f} | {:.2f} / {:.4f} | ".format(*pose_error(est.cur_from_key, truth),
                                                               *pose_error(new.cur_from_key, truth))
-                  + f"{heights[0]:.2f} / {heights[1]:.2f} | {relief.chi2:.0f} / {relief.h.size} | "
+                  + f"{heights[0]:.2f} / {heights[1]:.2f} | {terrain_grid.chi2:.0f} / "
+                  f"{terrain_grid.h.size} | "
                   f"{'yes' if lifted is not None else 'no'} | {ms:.0f} |", flush=True)
     print()
 
@@ -186,7 +187,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sections", nargs="+", default=["pair", "oracle"], choices=["pair", "oracle"])
     ap.add_argument("--frames", type=int, default=300, help="frames of the drives")
-    ap.add_argument("--renders", type=Path, default=Path("/tmp/monovo-relief-renders"),
+    ap.add_argument("--renders", type=Path, default=Path("/tmp/monovo-terrain grid-renders"),
                     help="where the drives are rendered and reused [default: %(default)s]")
     args = ap.parse_args()
     one_core()

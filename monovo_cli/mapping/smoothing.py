@@ -15,7 +15,7 @@ knowledge of the keyframes after it.
 The images fix a motion against a plane only as ``t / d`` (the plane-induced homography
 ``R + t n^T / d``): the motions of a keyframe's segment, measured against its plane at
 distance ``d``, are re-read against its smoothed plane at ``d'`` by scaling their
-translations by ``d' / d``, rotations unchanged. That is exact for a plane without relief
+translations by ``d' / d``, rotations unchanged. That is exact for a plane without terrain grid
 and a change of distance; the smoothed tilt's effect on the motions (first order in the
 tilt correction times the translation) is left out. Each keyframe's pose is its
 predecessor's re-scaled pose composed with the re-scaled motion between the two, and every
@@ -30,7 +30,7 @@ camera's centre in the keyframe's): the suspension bobs over tens of frames, and
 drawn at a crest is a sample as far from the mean as the bobbing goes. So the distances are
 solved again over the whole chain (:func:`smoothed_distances`): the carried distances of the
 links with the variance the carrying added, and the mounting prior on the mean of
-``log d_f`` over each keyframe's segment (:func:`segment_lifts`) with the prior's own std
+``log d_f`` over each keyframe's segment (:func:`segment_log_distance_ratios`) with the prior's own std
 (the frames of a segment are not independent samples: together they weigh as one). The
 tilts keep the backward pass's (they hardly move).
 
@@ -61,38 +61,38 @@ class Anchored(Protocol):
 
 
 def smoothed_distances(keys: Sequence[Anchored],
-                       lifts: Sequence[float] | None = None) -> np.ndarray:
+                       log_ratios: Sequence[float] | None = None) -> np.ndarray:
     """(K,) each keyframe's distance (m) solved over the whole chain, NaN where its links did
     not record what that takes (module docstring, "The distances").
 
-    ``keys`` oldest first; ``lifts[k]`` the mean over the frames of keyframe k's segment
+    ``keys`` oldest first; ``log_ratios[k]`` the mean over the frames of keyframe k's segment
     (itself included) of ``log(d_f / d_k)``, a frame's distance to the keyframe's plane over
     the keyframe's (None: zeros, the keyframes alone). Unknowns ``u_k = log(d'_k / d_k)``;
     linear least squares over: each link's carried distance, ``u_{k+1} - u_k = log(d_c /
-    d_{k+1})`` with std ``sqrt(carried_variance) / d_c``; the mounting prior on each segment,
-    ``u_k = log(D_0 / d_k) - lifts[k]`` with std ``sigma / D_0``; and a chain's first
+    d_{k+1})`` with std ``sqrt(propagated_variance) / d_c``; the mounting prior on each segment,
+    ``u_k = log(D_0 / d_k) - log_ratios[k]`` with std ``sigma / D_0``; and a chain's first
     keyframe held at its distance with its own variance where that is much tighter than the
     prior's (an ``init.yaml`` the images confirmed as exact). The normal equations are
     tridiagonal (Thomas' algorithm)."""
     K = len(keys)
-    lift = np.zeros(K) if lifts is None else np.asarray(lifts, dtype=float)
+    lift = np.zeros(K) if log_ratios is None else np.asarray(log_ratios, dtype=float)
     d = np.array([k.plane.distance for k in keys])
     diag, off, rhs = np.zeros(K), np.zeros(K), np.zeros(K)  # off[k]: between k-1 and k
     known = np.zeros(K, bool)
     for k in range(1, K):
         link = keys[k].link
-        if link is None or not np.isfinite(link.carried_distance):
+        if link is None or not np.isfinite(link.propagated_distance):
             continue
         D0, sigma = link.mounting
-        w = link.carried_distance ** 2 / max(link.carried_variance, 1e-12 * D0 ** 2)
-        c = np.log(link.carried_distance / d[k])
+        w = link.propagated_distance ** 2 / max(link.propagated_variance, 1e-12 * D0 ** 2)
+        c = np.log(link.propagated_distance / d[k])
         diag[k - 1] += w
         diag[k] += w
         off[k] -= w
         rhs[k] += w * c
         rhs[k - 1] -= w * c
         before = keys[k - 1].link
-        starts = k == 1 or before is None or not np.isfinite(before.carried_distance)
+        starts = k == 1 or before is None or not np.isfinite(before.propagated_distance)
         if starts and link.previous_variance < 1e-2 * sigma ** 2:  # held (exact)
             wp = d[k - 1] ** 2 / max(link.previous_variance, 1e-18)
             diag[k - 1] += wp
@@ -120,13 +120,13 @@ def _tridiagonal(diag: np.ndarray, off: np.ndarray, rhs: np.ndarray) -> np.ndarr
     return x
 
 
-def smoothed_planes(keys: Sequence[Anchored], lifts: Sequence[float] | None = None
+def smoothed_planes(keys: Sequence[Anchored], log_ratios: Sequence[float] | None = None
                     ) -> list[Plane]:
     """Each keyframe's plane (its camera) smoothed over the chain, ``keys`` oldest first: the
     tilts from the smoother's backward pass, the distance from :func:`smoothed_distances`
     (the backward pass's where that has none)."""
     delta = smoothed_corrections([k.link for k in keys])
-    dist = smoothed_distances(keys, lifts)
+    dist = smoothed_distances(keys, log_ratios)
     out = []
     for k, x, dk in zip(keys, delta, dist):
         if np.isfinite(dk):
@@ -150,7 +150,7 @@ def _segments(index: Sequence[int], world_from_cam: np.ndarray,
     return out
 
 
-def _lift(key: Anchored, key_from_cam: np.ndarray) -> float:
+def _mean_log_distance_ratio(key: Anchored, key_from_cam: np.ndarray) -> float:
     """The mean of ``log(d_f / d_k)`` over a segment's frames at ``key_from_cam`` (n, 4, 4):
     each frame camera's distance to the keyframe's plane over the keyframe's."""
     n, dk = key.plane.normal, key.plane.distance
@@ -159,12 +159,12 @@ def _lift(key: Anchored, key_from_cam: np.ndarray) -> float:
     return float(np.mean(np.log(r))) if len(r) else 0.0
 
 
-def segment_lifts(index: Sequence[int], world_from_cam: np.ndarray,
+def segment_log_distance_ratios(index: Sequence[int], world_from_cam: np.ndarray,
                   keys: Sequence[tuple[int, Anchored]]) -> list[float]:
     """Per keyframe of ``keys`` (``(frame index, keyframe)``, oldest first), the mean over the
     frames ``index`` of its segment, at poses ``world_from_cam`` (N, 4, 4), of ``log(d_f /
     d_k)``: the frame camera's distance to the keyframe's plane over the keyframe's."""
-    return [_lift(key, rel) for (_, key), (_, rel) in
+    return [_mean_log_distance_ratio(key, rel) for (_, key), (_, rel) in
             zip(keys, _segments(index, world_from_cam, keys))]
 
 
@@ -217,8 +217,9 @@ def smooth_drive(index: Sequence[int], world_from_cam: np.ndarray,
         return SmoothedDrive((), (), np.zeros((0, 4, 4)), W.copy())
     anchored = [k for _, k in keys]
     parts = _segments(index, W, keys)
-    lifts = [_lift(k, rel) for k, (_, rel) in zip(anchored, parts)] if segments else None
-    planes = smoothed_planes(anchored, lifts)
+    log_ratios = ([_mean_log_distance_ratio(k, rel) for k, (_, rel) in zip(anchored, parts)]
+                  if segments else None)
+    planes = smoothed_planes(anchored, log_ratios)
     key_poses = smoothed_key_poses(anchored, planes)
     out = W.copy()
     for a, (key, (rows, rel)) in enumerate(zip(anchored, parts)):
