@@ -1,11 +1,21 @@
 """Atomic file writes: a temporary file beside the target, fsync, rename; the umask's mode.
+
+Inside :func:`digests_recorded`, every file written here or through a
+:class:`DigestingStream` leaves its size and SHA-256 in the recorder, computed from the bytes
+as they are written, so a caller can fingerprint what it wrote without reading it back.
 """
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import os
 import tempfile
+from collections.abc import Iterator
+from contextvars import ContextVar
+from dataclasses import dataclass
 from pathlib import Path
+from typing import IO
 
 from monovo_cli.errors import OutputError
 
@@ -16,6 +26,58 @@ def created_mode(directory: bool = False) -> int:
     mask = os.umask(0)
     os.umask(mask)
     return (0o777 if directory else 0o666) & ~mask
+
+
+@dataclass(frozen=True)
+class FileDigest:
+    """A file's size (bytes) and the SHA-256 of its content (hex)."""
+
+    bytes: int
+    sha256: str
+
+
+_RECORDER: ContextVar[dict[str, FileDigest] | None] = ContextVar("monovo_digests", default=None)
+
+
+@contextlib.contextmanager
+def digests_recorded() -> Iterator[dict[str, FileDigest]]:
+    """A dict, absolute path -> :class:`FileDigest`, of the files written in this context
+    (the last write of a path wins). Per thread and task (a context variable)."""
+    digests: dict[str, FileDigest] = {}
+    token = _RECORDER.set(digests)
+    try:
+        yield digests
+    finally:
+        _RECORDER.reset(token)
+
+
+def _record(path: Path, size: int, sha256: str) -> None:
+    digests = _RECORDER.get()
+    if digests is not None:
+        digests[os.path.abspath(path)] = FileDigest(size, sha256)
+
+
+class DigestingStream:
+    """A text stream to ``path`` (opened for writing, ``newline=""``) that hashes what it
+    writes (UTF-8) and records the digest when closed (:func:`digests_recorded`)."""
+
+    def __init__(self, stream: IO[str], path: Path) -> None:
+        self._stream, self._path = stream, Path(path)
+        self._hash, self._size = hashlib.sha256(), 0
+
+    def write(self, text: str) -> int:
+        data = text.encode("utf-8")
+        self._hash.update(data)
+        self._size += len(data)
+        return self._stream.write(text)
+
+    def flush(self) -> None:
+        self._stream.flush()
+
+    def close(self) -> None:
+        if not self._stream.closed:
+            self._stream.close()
+            _record(self._path, self._size, self._hash.hexdigest())
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
@@ -36,6 +98,7 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
+        _record(path, len(data), hashlib.sha256(data).hexdigest())
     except BaseException:
         try:
             os.unlink(tmp)

@@ -19,6 +19,7 @@ from typing import Any
 
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.errors import InputError, MonovoError, OutputError
+from monovo_cli.io.atomic import digests_recorded
 from monovo_cli.version import __version__
 
 FRAMES_SUBDIR = "frames"  # as monovo_cli.io.sources (not imported here: it loads OpenCV)
@@ -255,19 +256,19 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: JobOptions | No
                 raise OutputError(f"{out_dir}: already holds results ({DONE_FILE}); use "
                                   "overwrite (--overwrite / --resume) or another output folder")
             done.unlink()
-        run = track_sequence(
-            seq_dir, None, out_dir, job.track, overwrite=overwrite,
-            skip_bad_frames=job.skip_bad_frames,
-            mask=Path(job.mask) if job.mask else None,
-            prior=_folder(seq_dir) / job.prior if job.prior else None,
-            covariance=out_dir / job.covariance if job.covariance else None, topic=job.topic,
-            smooth=job.smooth)
+        with digests_recorded() as written:
+            run = track_sequence(
+                seq_dir, None, out_dir, job.track, overwrite=overwrite,
+                skip_bad_frames=job.skip_bad_frames,
+                mask=Path(job.mask) if job.mask else None,
+                prior=_folder(seq_dir) / job.prior if job.prior else None,
+                covariance=out_dir / job.covariance if job.covariance else None, topic=job.topic,
+                smooth=job.smooth)
         n_frames, fingerprint = _input_fingerprint(seq_dir, job.prior, job.topic)
         if run.frames != n_frames:
             raise RuntimeError(f"{seq_dir}: {run.frames} frames tracked, expected {n_frames}")
         names = list(RESULT_FILES) + ([job.covariance] if job.covariance else [])
-        files = {n: {"bytes": (out_dir / n).stat().st_size, "sha256": _sha256(out_dir / n)}
-                 for n in names if (out_dir / n).is_file()}
+        files = {n: asdict(written[d]) for n in names if (d := os.path.abspath(out_dir / n)) in written}
         stats = {"frames": run.frames, "fps": run.fps, "mean_msd": run.mean_msd,
                  "lost": run.lost, "reanchored": run.reanchored,
                  "distance_m": run.path_length, "seconds": run.seconds}

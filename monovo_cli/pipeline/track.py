@@ -27,7 +27,7 @@ from monovo_cli.core.odometry import FrameResult
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.run import TrackRun
 from monovo_cli.errors import InputError, OutputError
-from monovo_cli.io.atomic import atomic_write_text
+from monovo_cli.io.atomic import DigestingStream, atomic_write_text
 from monovo_cli.io.formats import CovarianceWriter, MotionRow, MotionWriter, trajectory_csv_text, tum_text
 from monovo_cli.io.model import save_model
 from monovo_cli.io.run_record import run_record, write_run_record
@@ -168,7 +168,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                                "smooth": smooth},
             frames, cfg.path, {"model": model, "mask": mask, "prior": prior,
                                "groundtruth": groundtruth}))
-        stream = open(Path(out_dir) / "motion.csv", "w", newline="")
+        motion = Path(out_dir) / "motion.csv"
+        stream = DigestingStream(open(motion, "w", newline="", encoding="utf-8"), motion)
     else:
         stream = sys.stdout
 
@@ -225,9 +226,9 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     return run
 
 
-def _open_output(path: Path):
+def _open_output(path: Path) -> DigestingStream:
     try:
-        return open(path, "w", newline="")
+        return DigestingStream(open(path, "w", newline="", encoding="utf-8"), path)
     except OSError as exc:
         raise OutputError(f"{path}: cannot write ({exc.strerror})") from None
 
