@@ -1,6 +1,6 @@
 """Every bad input monovo is tested against, one :class:`Case` per row of docs/reliability.md.
 
-``tests/test_reliability.py`` runs each case through the CLI and asserts its exit status
+``tests/cli/test_reliability.py`` runs each case through the CLI and asserts its exit status
 and the key words of its message; ``docs/make_reliability_table.py`` runs the same cases
 and writes the table, so the document and the tests cannot drift apart.
 

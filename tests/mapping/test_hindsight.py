@@ -4,8 +4,12 @@ import math
 
 import numpy as np
 import pytest
-from plane_helpers import N0
 
+from monovo_cli.core.options import TrackOptions
+from monovo_cli.core.plane.belief import PlaneLink
+from monovo_cli.geometry.lie import make_pose, se3_inv, so3_exp
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.io.formats import read_tum
 from monovo_cli.mapping.hindsight import (
     Hindsight,
     KeyRecord,
@@ -13,13 +17,9 @@ from monovo_cli.mapping.hindsight import (
     smoothed_distances,
     smoothed_poses,
 )
-from monovo_cli.core.options import TrackOptions
-from monovo_cli.core.plane.belief import PlaneLink
-from monovo_cli.geometry.lie import make_pose, se3_inv, so3_exp
-from monovo_cli.geometry.plane import Plane
-from monovo_cli.io.formats import read_tum
 from monovo_cli.pipeline.track import track_sequence
 from monovo_cli.synth.write import synthesize
+from tests.helpers.plane_helpers import N0
 
 
 def drive(n: int) -> np.ndarray:

@@ -146,7 +146,7 @@ def test_standing_start_at_the_corner_of_the_rotation_grid():
     from a standing start, between the search's grid points. It was called lost while
     O^T W O was formed once per level: from a far-off hypothesis the weights change with
     every step, and the right one had not converged within the search's iterations."""
-    pair = Path(__file__).parent / "data" / "pair_large_rotation"
+    pair = Path(__file__).parents[1] / "data" / "pair_large_rotation"
     res = _run(pair)
     _, gt, _ = read_motion_csv(pair / "groundtruth_motion.csv")
     assert np.degrees(np.abs(so3_log(gt[0][:3, :3]))).min() > 0.4  # a real 3-axis rotation

@@ -5,13 +5,13 @@ import sys
 import numpy as np
 import pytest
 import yaml
-from product_writers import MASK_12, twelve_bit, utc, write_pds3, write_pds4
 
 from monovo_cli.errors import ConfigError, InputError
 from monovo_cli.io.config import load_init
 from monovo_cli.io.frames import FrameSequence
 from monovo_cli.io.pds import parse_time, read_product
 from monovo_cli.io.pds_camera import read_camera_model
+from tests.helpers.product_writers import MASK_12, twelve_bit, utc, write_pds3, write_pds4
 
 pytest.importorskip("pdr")
 

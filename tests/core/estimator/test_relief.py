@@ -15,14 +15,10 @@ from dataclasses import replace
 import cv2
 import numpy as np
 import pytest
-from plane_helpers import tilted
 
 from monovo_cli.core.estimator.estimate import KeyLevel, estimate_motion
 from monovo_cli.core.estimator.ground import LevelPoints
 from monovo_cli.core.estimator.jacobian import project_in_front
-from monovo_cli.core.keyframe import build_keyframe
-from monovo_cli.core.odometry import track
-from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.estimator.relief import (
     MAX_VERTICES_PER_SIDE,
     Relief,
@@ -34,6 +30,9 @@ from monovo_cli.core.estimator.relief import (
     relief_rows,
     solve_relief,
 )
+from monovo_cli.core.keyframe import build_keyframe
+from monovo_cli.core.odometry import track
+from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.lie import make_pose, se3_exp, se3_inv, so3_exp, so3_log
 from monovo_cli.geometry.plane import Plane
@@ -50,6 +49,7 @@ from monovo_cli.synth.rover import rover_mount
 from monovo_cli.synth.terrain import make_terrain
 from monovo_cli.synth.texture import GroundTexture, procedural_texture
 from monovo_cli.synth.write import synthesize
+from tests.helpers.plane_helpers import tilted
 
 N0 = np.array([0.0, math.cos(math.radians(40)), math.sin(math.radians(40))])
 PLANE = Plane(N0, 1.5)

@@ -9,10 +9,10 @@ import pytest
 from click.testing import CliRunner
 
 from monovo_cli.cli import main
-from monovo_cli.mapping.terrain_map import TerrainMap, ground_frame
 from monovo_cli.geometry.lie import make_pose, so3_exp
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.terrain import HEIGHTMAP_HEADER, heightmap_csv_text, ply_bytes, read_ply
+from monovo_cli.mapping.terrain_map import TerrainMap, ground_frame
 
 N0 = np.array([0.0, math.cos(math.radians(40)), math.sin(math.radians(40))])
 
@@ -187,9 +187,9 @@ def test_depth_refinement_finds_the_ground_a_wrong_plane_missed():
     """Two views of flat ground 0.4 m apart, exact poses; the keyframe's plane is 2 cm too
     far. The 3 x 3 patches move the points that the images constrain (reported std < 1 cm,
     31 % of them) to 0.48 cm RMS off the ground, from 2 cm (all points in view: 0.79 cm)."""
-    from monovo_cli.mapping.depth import refine_depths
     from monovo_cli.core.estimator.ground import select_points
     from monovo_cli.geometry.lie import se3_inv
+    from monovo_cli.mapping.depth import refine_depths
     from monovo_cli.synth.motion import camera_mount
     from monovo_cli.synth.render import GroundRenderer, default_camera, finish_frame, ground_in_camera
     from monovo_cli.synth.texture import GroundTexture, procedural_texture
@@ -220,9 +220,9 @@ def test_depth_sweep_puts_points_the_relief_misplaced_back_on_the_ground():
     The sweep moves most of them back to within 1 cm and leaves the others where they are
     (measured: 57 % moved, to 0.79 cm RMS; 0.06 % of the others moved). The rest are points
     whose texture runs along their epipolar line: no height is clearly better there."""
-    from monovo_cli.mapping.depth import sweep_depths
     from monovo_cli.core.estimator.ground import select_points
     from monovo_cli.geometry.lie import se3_inv
+    from monovo_cli.mapping.depth import sweep_depths
     from monovo_cli.synth.motion import camera_mount
     from monovo_cli.synth.render import GroundRenderer, default_camera, finish_frame, ground_in_camera
     from monovo_cli.synth.texture import GroundTexture, procedural_texture

@@ -7,6 +7,7 @@ import pytest
 from click.testing import CliRunner
 
 from monovo_cli.cli import main
+from monovo_cli.errors import InputError
 from monovo_cli.evaluation.metrics import (
     ate,
     evaluate,
@@ -16,7 +17,6 @@ from monovo_cli.evaluation.metrics import (
 )
 from monovo_cli.evaluation.report import format_report
 from monovo_cli.evaluation.sync import match_timestamps
-from monovo_cli.errors import InputError
 from monovo_cli.geometry.lie import pose_from_vectors, se3_inv, so3_log
 from monovo_cli.io.formats import read_tum, tum_text
 

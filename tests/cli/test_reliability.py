@@ -19,12 +19,12 @@ import cv2
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from reliability_cases import CASES, Outcome, make_base_sequence, run_case
 
 from monovo_cli.cli import main
 from monovo_cli.synth.write import synthesize
+from tests.helpers.reliability_cases import CASES, Outcome, make_base_sequence, run_case
 
-DOC = Path(__file__).resolve().parents[1] / "docs" / "reliability.md"
+DOC = Path(__file__).resolve().parents[2] / "docs" / "reliability.md"
 _BAR = re.compile(r"^\s*\d+%\||^\s*$")  # tqdm progress output (split at its \r)
 MOTION_HEADER = "frame,tx,ty,tz,rx,ry,rz,msd,iterations,points,status"
 

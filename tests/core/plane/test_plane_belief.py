@@ -5,9 +5,7 @@ import math
 import numpy as np
 import pytest
 import yaml
-from plane_helpers import N0, tilted
 
-from monovo_cli.mapping.hindsight import Hindsight
 from monovo_cli.core.odometry import Odometry, track
 from monovo_cli.core.plane.belief import (
     PlaneBelief,
@@ -23,11 +21,12 @@ from monovo_cli.core.plane.belief import (
     to_chart,
     transported,
 )
-from monovo_cli.mapping.terrain_map import TerrainMap
 from monovo_cli.errors import ConfigError
 from monovo_cli.geometry.lie import make_pose, se3_inv, so3_exp
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.config import load_init
+from monovo_cli.mapping.hindsight import Hindsight
+from monovo_cli.mapping.terrain_map import TerrainMap
 from monovo_cli.synth.motion import camera_mount
 from monovo_cli.synth.render import (
     GroundRenderer,
@@ -37,6 +36,7 @@ from monovo_cli.synth.render import (
     ground_region,
 )
 from monovo_cli.synth.texture import GroundTexture, procedural_texture
+from tests.helpers.plane_helpers import N0, tilted
 
 
 def test_chart_round_trip_and_jacobian():

@@ -6,18 +6,10 @@ import math
 
 import numpy as np
 import pytest
-from plane_helpers import N0, tilted
 
 from benchmarks.common import motion_errors
 from monovo_cli.core.estimator.estimate import estimate_motion
 from monovo_cli.core.keyframe import build_keyframe
-from monovo_cli.core.plane.motion_covariance import (
-    TILT_PERSISTENCE,
-    MotionCovariance,
-    PlaneConsistency,
-    plane_sensitivity,
-    point_sample,
-)
 from monovo_cli.core.odometry import track
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane.belief import (
@@ -27,6 +19,13 @@ from monovo_cli.core.plane.belief import (
     exact_covariance,
     mounting_prior,
     to_chart,
+)
+from monovo_cli.core.plane.motion_covariance import (
+    TILT_PERSISTENCE,
+    MotionCovariance,
+    PlaneConsistency,
+    plane_sensitivity,
+    point_sample,
 )
 from monovo_cli.geometry.lie import adjoint, make_pose, se3_inv, se3_log, so3_exp
 from monovo_cli.geometry.plane import Plane
@@ -44,6 +43,7 @@ from monovo_cli.synth.render import (
 )
 from monovo_cli.synth.texture import GroundTexture, procedural_texture
 from monovo_cli.synth.write import synthesize
+from tests.helpers.plane_helpers import N0, tilted
 
 
 @pytest.fixture(scope="module")

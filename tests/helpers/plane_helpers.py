@@ -6,9 +6,8 @@ import math
 
 import numpy as np
 
-from monovo_cli.geometry.plane import tangent_basis
 from monovo_cli.geometry.lie import so3_exp
-from monovo_cli.geometry.plane import Plane
+from monovo_cli.geometry.plane import Plane, tangent_basis
 
 N0 = np.array([0.0, math.cos(math.radians(40)), math.sin(math.radians(40))])
 

@@ -1,6 +1,6 @@
 """Issue 15's acceptance: one synthetic drive as PDS3 and PDS4 products, a lossless video, ROS 1
 and ROS 2 bags tracks to the PNG directory's motion.csv byte for byte; an H.264 mp4 of it ends
-within 1 % of its path. Every file is written here (tests/product_writers.py)."""
+within 1 % of its path. Every file is written here (tests/helpers/product_writers.py)."""
 
 import sys
 from pathlib import Path
@@ -9,13 +9,21 @@ import cv2
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from product_writers import MASK_12, twelve_bit, utc, write_bag, write_pds3, write_pds4, write_video
 
 from monovo_cli.cli import main
 from monovo_cli.errors import InputError
 from monovo_cli.io.formats import read_trajectory_csv
 from monovo_cli.io.frames import FrameSequence, resolve_sequence
 from monovo_cli.synth.write import synthesize
+from tests.helpers.product_writers import (
+    MASK_12,
+    twelve_bit,
+    utc,
+    write_bag,
+    write_pds3,
+    write_pds4,
+    write_video,
+)
 
 N_FRAMES = 8
 FPS = 10.0

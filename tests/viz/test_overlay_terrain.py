@@ -16,7 +16,6 @@ import pytest
 from click.testing import CliRunner
 
 from monovo_cli.cli import main
-from monovo_cli.mapping.terrain_map import HeightGrid, ground_frame
 from monovo_cli.errors import InputError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import se3_inv
@@ -24,6 +23,7 @@ from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_tum
 from monovo_cli.io.terrain import heightmap_csv_text, read_heightmap
+from monovo_cli.mapping.terrain_map import HeightGrid, ground_frame
 from monovo_cli.synth.terrain import load_terrain
 from monovo_cli.synth.write import synthesize
 from monovo_cli.viz.drape import (
