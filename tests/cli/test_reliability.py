@@ -203,10 +203,8 @@ main()
 
 
 @pytest.fixture(scope="module")
-def drive(tmp_path_factory) -> Path:
-    seq = tmp_path_factory.mktemp("determinism") / "seq"
-    synthesize(seq, preset="drive", frames=40, size=(128, 128), seed=7)
-    return seq
+def drive(synth_drive) -> Path:
+    return synth_drive(preset="drive", frames=40, size=(128, 128), seed=7)
 
 
 def _outputs(out: Path) -> dict[str, bytes]:

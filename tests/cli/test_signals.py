@@ -36,14 +36,11 @@ TIMEOUT = 120
 
 
 @pytest.fixture(scope="module")
-def drive(tmp_path_factory):
+def drive(synth_drive, tmp_path_factory):
     """A 300-frame 128x128 drive (~2 s of tracking) and its uninterrupted outputs with
     ``--no-smooth`` (the poses as streamed)."""
-    root = tmp_path_factory.mktemp("signals")
-    seq, ref = root / "seq", root / "ref"
-    r = CliRunner().invoke(main, ["synth", str(seq), "--frames", str(FRAMES), "--size", "128x128",
-                                  "--seed", "4", "-q"])
-    assert r.exit_code == 0, r.output
+    seq = synth_drive(preset="drive", frames=FRAMES, size=(128, 128), seed=4)
+    ref = tmp_path_factory.mktemp("signals") / "ref"
     r = CliRunner().invoke(main, ["track", str(seq), "-o", str(ref), "-q", "--no-smooth"])
     assert r.exit_code == 0, r.output
     return seq, {name: (ref / name).read_text() for name in RESULTS}

@@ -23,10 +23,8 @@ from monovo_cli.synth.write import synthesize
 
 
 @pytest.fixture(scope="module")
-def drive(tmp_path_factory):
-    root = tmp_path_factory.mktemp("drives")
-    synthesize(root / "d", preset="drive", frames=40, size=(192, 192), noise_var=10.0, seed=21)
-    return root / "d"
+def drive(synth_drive):
+    return synth_drive(preset="drive", frames=40, size=(192, 192), noise_var=10.0, seed=21)
 
 
 def _track(seq, images=None, options=None, priors=None):

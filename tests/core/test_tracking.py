@@ -31,10 +31,8 @@ def _run(seq: Path, options: TrackOptions | None = None):
 
 
 @pytest.fixture(scope="module")
-def pairs(tmp_path_factory):
-    root = tmp_path_factory.mktemp("pairs")
-    synthesize(root / "p", preset="pairs", frames=4, noise_var=10.0, seed=11)
-    return sorted((root / "p").glob("pair_*"))
+def pairs(synth_drive):
+    return sorted(synth_drive(preset="pairs", frames=4, noise_var=10.0, seed=11).glob("pair_*"))
 
 
 def test_pairs_recovered_within_noise_tolerance(pairs):
@@ -95,10 +93,8 @@ def test_a_first_mer_step_from_a_crest_is_re_estimated_on_the_corrected_plane(tm
 
 
 @pytest.fixture(scope="module")
-def drive(tmp_path_factory):
-    root = tmp_path_factory.mktemp("drive")
-    synthesize(root / "d", preset="drive", frames=60, size=(256, 256), noise_var=10.0, seed=3)
-    return root / "d"
+def drive(synth_drive):
+    return synth_drive(preset="drive", frames=60, size=(256, 256), noise_var=10.0, seed=3)
 
 
 def test_short_drive_tracks_against_ground_truth(drive):

@@ -194,14 +194,13 @@ def test_fuzz_read_motion_stats(scratch, data):
 
 
 @pytest.fixture(scope="module")
-def model_bytes(tmp_path_factory) -> bytes:
+def model_bytes(synth_drive, tmp_path_factory) -> bytes:
     from monovo_cli.core.options import TrackOptions
     from monovo_cli.pipeline.track import init_model
-    from monovo_cli.synth.write import synthesize
 
+    seq = synth_drive(preset="drive", frames=2, size=(64, 64), seed=2)
     root = tmp_path_factory.mktemp("model")
-    synthesize(root / "seq", preset="drive", frames=2, size=(64, 64), seed=2)
-    init_model(root / "seq", None, root / "model.npz", TrackOptions(max_points=300))
+    init_model(seq, None, root / "model.npz", TrackOptions(max_points=300))
     return _Blob((root / "model.npz").read_bytes())
 
 

@@ -174,10 +174,8 @@ def test_body_lies_on_a_sloping_plane_and_bobs_from_a_crest():
 
 
 @pytest.fixture(scope="module")
-def rolling_drive(tmp_path_factory):
-    out = tmp_path_factory.mktemp("rolling")
-    synthesize(out, terrain="rolling", frames=6, size=SIZE, seed=3, noise_var=0.0)
-    return out
+def rolling_drive(synth_drive):
+    return synth_drive(terrain="rolling", frames=6, size=SIZE, seed=3, noise_var=0.0)
 
 
 def test_terrain_drive_ground_truth_chains(rolling_drive):

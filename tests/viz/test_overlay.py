@@ -37,11 +37,11 @@ from monovo_cli.viz.plots import on_plane, plot_trajectory
 
 
 @pytest.fixture(scope="module")
-def tracked(tmp_path_factory):
-    root = tmp_path_factory.mktemp("overlay")
-    synthesize(root / "seq", preset="drive", frames=40, size=(256, 256), noise_var=10.0, seed=7)
-    track_sequence(root / "seq", None, root / "out", TrackOptions())
-    return root / "seq", root / "out"
+def tracked(synth_drive, tmp_path_factory):
+    seq = synth_drive(preset="drive", frames=40, size=(256, 256), noise_var=10.0, seed=7)
+    out = tmp_path_factory.mktemp("overlay") / "out"
+    track_sequence(seq, None, out, TrackOptions())
+    return seq, out
 
 
 def _setup(seq: Path):

@@ -48,7 +48,6 @@ from monovo_cli.synth.render import default_camera, finish_frame, ground_in_came
 from monovo_cli.synth.rover import rover_mount
 from monovo_cli.synth.terrain import make_terrain
 from monovo_cli.synth.texture import GroundTexture, procedural_texture
-from monovo_cli.synth.write import synthesize
 from tests.helpers.plane_helpers import tilted
 
 N0 = np.array([0.0, math.cos(math.radians(40)), math.sin(math.radians(40))])
@@ -494,10 +493,8 @@ def test_a_pitched_keyframe_plane_does_not_turn_into_scale(texture):
 
 
 @pytest.fixture(scope="module")
-def rolling_drive(tmp_path_factory):
-    out = tmp_path_factory.mktemp("relief") / "rolling"
-    synthesize(out, terrain="rolling", frames=20, size=(256, 256), seed=3, noise_var=10)
-    return out
+def rolling_drive(synth_drive):
+    return synth_drive(terrain="rolling", frames=20, size=(256, 256), seed=3, noise_var=10)
 
 
 def run(seq, relief: bool):

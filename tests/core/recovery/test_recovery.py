@@ -21,10 +21,8 @@ from monovo_cli.synth.write import synthesize
 
 
 @pytest.fixture(scope="module")
-def drive(tmp_path_factory):
-    root = tmp_path_factory.mktemp("recovery") / "d"
-    synthesize(root, preset="drive", frames=24, size=(160, 160), noise_var=10.0, seed=11)
-    return root
+def drive(synth_drive):
+    return synth_drive(preset="drive", frames=24, size=(160, 160), noise_var=10.0, seed=11)
 
 
 def _rows(path):
