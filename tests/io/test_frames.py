@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import shutil
 import types
 from pathlib import Path
 
@@ -161,6 +162,19 @@ def test_times_txt_not_text(tmp_path):
     (tmp_path / "times.txt").write_bytes(b"\xff\xfe\x00\x81")
     with pytest.raises(InputError, match=r"times\.txt: cannot read timestamps"):
         FrameSequence(tmp_path)
+
+
+def test_times_txt_beside_frames_is_used_and_a_conflict_refused(small_drive, tmp_path):
+    s = tmp_path / "s"
+    shutil.copytree(small_drive, s)
+    times = "".join(f"{100 + 0.1 * k:.1f}\n" for k in range(10))
+    (s / "times.txt").write_text(times)
+    np.testing.assert_allclose(FrameSequence(s).timestamps, 100 + 0.1 * np.arange(10))
+    (s / "frames" / "times.txt").write_text(times)  # the same in both places: fine
+    np.testing.assert_allclose(FrameSequence(s).timestamps, 100 + 0.1 * np.arange(10))
+    (s / "frames" / "times.txt").write_text("".join(f"{k}\n" for k in range(10)))
+    with pytest.raises(InputError, match=r"times\.txt.*and .*times\.txt.* differ"):
+        FrameSequence(s)
 
 
 # ----------------------------------------------------------------------------- decoding

@@ -1,52 +1,27 @@
-"""The problems users met in the trial (issue 15.7), one test each; every test failed before
-its fix."""
+"""What ``monovo init`` and ``monovo track`` check before they write anything
+(pipeline/preflight.py): ``--covariance``'s path, the results already in the output folder,
+``--groundtruth`` against the frames, ``--model`` against the sequence, init.yaml and options.
+Each check was added for a problem users met in the trial (issue 15.7), and each test
+failed before its fix."""
 
 from __future__ import annotations
 
 import csv
 import logging
-import shlex
-import shutil
-from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
-from click.testing import CliRunner
 
-from monovo_cli.cli import main
-from monovo_cli.errors import InputError
 from monovo_cli.io.frames import FrameSequence
 from monovo_cli.io.model import load_model
-
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def run(*args) -> tuple[int, str]:
-    r = CliRunner().invoke(main, [str(a) for a in args])
-    return r.exit_code, r.output
+from tests.helpers.cli import one_error_line, run
 
 
-def one_error_line(output: str) -> str:
-    lines = [ln for ln in output.splitlines() if ln.strip()]
-    assert len(lines) == 1 and lines[0].startswith("Error: "), output
-    return lines[0]
-
-
-@pytest.fixture(scope="module")
-def seqs(tmp_path_factory):
-    """Two 10-frame 128x128 drives with different frame 0s (seeds 4 and 5)."""
-    root = tmp_path_factory.mktemp("trial")
-    for name, seed in (("a", 4), ("b", 5)):
-        code, out = run("synth", root / name, "--frames", "10", "--size", "128x128", "--seed",
-                        seed, "-q")
-        assert code == 0, out
-    return root / "a", root / "b"
-
-
-@pytest.fixture()
-def seq(seqs):
-    return seqs[0]
+@pytest.fixture
+def seq(small_drive):
+    """The 10-frame drive of seed 4 (shared: the tests write only into tmp_path)."""
+    return small_drive
 
 
 # ----------------------------------------------------------------------------- --covariance
@@ -82,24 +57,30 @@ def test_covariance_dash_is_refused_not_a_file_named_dash(seq, tmp_path, monkeyp
     assert not (tmp_path / "-").exists() and not (tmp_path / "out").exists()
 
 
-def test_covariance_is_in_degrees_like_every_other_output(seq, tmp_path):
-    out = tmp_path / "out"
-    code, output = run("track", seq, "-o", out, "-q", "--covariance", out / "cov.csv")
+# ----------------------------------------------------------------------------- --groundtruth
+
+
+def test_groundtruth_of_another_sequence_is_refused(seq, tmp_path, caplog):
+    gt = tmp_path / "gt.tum"
+    gt.write_text("".join(f"{float(line.split()[0]) + 50} {line.split(' ', 1)[1]}"
+                          for line in (seq / "groundtruth.tum").read_text().splitlines(True)))
+    code, output = run("track", seq, "-o", tmp_path / "o", "--groundtruth", gt)
+    line = one_error_line(output)
+    assert code == 2 and "gt.tum" in line and "timestamps" in line
+    assert not (tmp_path / "o").exists()
+    half = tmp_path / "half.tum"
+    half.write_text("".join((seq / "groundtruth.tum").read_text().splitlines(True)[:5]))
+    with caplog.at_level(logging.WARNING, logger="monovo_cli"):
+        code, output = run("track", seq, "-o", tmp_path / "o2", "--groundtruth", half)
     assert code == 0, output
-    rows = list(csv.reader((out / "cov.csv").open()))[1:]
-    with (out / "motion.csv").open() as f:
-        motion = list(csv.DictReader(f))
-    axes = ("tx", "ty", "tz", "rx", "ry", "rz")
-    stds = np.array([[float(m[f"std_{a}"]) for a in axes] for m in motion])
-    cov_std = np.array([np.sqrt(np.diag(np.array(r[1:], float).reshape(6, 6))) for r in rows])
-    np.testing.assert_allclose(cov_std, stds, rtol=1e-9)  # std_rx.. are in degrees
+    assert "half.tum: matches only 5 of the 10 frames" in caplog.text
 
 
 # ----------------------------------------------------------------------------- --model
 
 
-def test_a_model_of_another_sequence_is_refused(seqs, tmp_path):
-    a, b = seqs
+def test_a_model_of_another_sequence_is_refused(small_drive, other_small_drive, tmp_path):
+    a, b = small_drive, other_small_drive
     model = tmp_path / "b.npz"
     assert run("init", b, "-o", model, "-q")[0] == 0
     code, output = run("track", a, "-o", tmp_path / "out", "--model", model)
@@ -173,54 +154,3 @@ def test_model_options_given_to_track_must_be_the_models(seq, tmp_path):
         code, output = run("track", seq, "-o", tmp_path / "o", "--model", model, opt, value)
         line = one_error_line(output)
         assert code == 2 and opt in line and "monovo init" in line, line
-
-
-# ----------------------------------------------------------------------------- inputs
-
-
-def test_times_txt_beside_frames_is_used_and_a_conflict_refused(seq, tmp_path):
-    s = tmp_path / "s"
-    shutil.copytree(seq, s)
-    times = "".join(f"{100 + 0.1 * k:.1f}\n" for k in range(10))
-    (s / "times.txt").write_text(times)
-    np.testing.assert_allclose(FrameSequence(s).timestamps, 100 + 0.1 * np.arange(10))
-    (s / "frames" / "times.txt").write_text(times)  # the same in both places: fine
-    np.testing.assert_allclose(FrameSequence(s).timestamps, 100 + 0.1 * np.arange(10))
-    (s / "frames" / "times.txt").write_text("".join(f"{k}\n" for k in range(10)))
-    with pytest.raises(InputError, match=r"times\.txt.*and .*times\.txt.* differ"):
-        FrameSequence(s)
-
-
-def test_groundtruth_of_another_sequence_is_refused(seq, tmp_path, caplog):
-    gt = tmp_path / "gt.tum"
-    gt.write_text("".join(f"{float(line.split()[0]) + 50} {line.split(' ', 1)[1]}"
-                          for line in (seq / "groundtruth.tum").read_text().splitlines(True)))
-    code, output = run("track", seq, "-o", tmp_path / "o", "--groundtruth", gt)
-    line = one_error_line(output)
-    assert code == 2 and "gt.tum" in line and "timestamps" in line
-    assert not (tmp_path / "o").exists()
-    half = tmp_path / "half.tum"
-    half.write_text("".join((seq / "groundtruth.tum").read_text().splitlines(True)[:5]))
-    with caplog.at_level(logging.WARNING, logger="monovo_cli"):
-        code, output = run("track", seq, "-o", tmp_path / "o2", "--groundtruth", half)
-    assert code == 0, output
-    assert "half.tum: matches only 5 of the 10 frames" in caplog.text
-
-
-# ----------------------------------------------------------------------------- the README
-
-
-def test_sample_sequences_readme_commands_run_after_the_quickstart(tmp_path, monkeypatch):
-    """The commands of sample_sequences/README.md, in order, into tmp_path instead of out/;
-    twice, as after the guide's quickstart, which writes the same outputs."""
-    text = (ROOT / "sample_sequences" / "README.md").read_text()
-    block = text.split("```")[-2]
-    commands = [shlex.split(line) for line in block.strip().splitlines()]
-    assert commands and all(c[0] == "monovo" for c in commands)
-    monkeypatch.chdir(ROOT)
-    for _ in range(2):
-        for c in commands:
-            args = [a.replace("out/", f"{tmp_path}/out/") for a in c[1:]]
-            code, output = run(*args, "-q")
-            assert code == 0, (c, output)
-    assert (tmp_path / "out" / "navcam_drive" / "overlay.mp4").is_file()
