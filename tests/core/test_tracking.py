@@ -36,6 +36,7 @@ def pairs(synth_drive):
 
 
 def test_pairs_recovered_within_noise_tolerance(pairs):
+    assert len(pairs) == 4
     for pair in pairs:
         res = _run(pair)
         _, gt, _ = read_motion_csv(pair / "groundtruth_motion.csv")
@@ -68,7 +69,9 @@ def test_noisy_frame_after_a_clean_keyframe_is_not_lost(tmp_path):
     used to call 30 of 30 such pairs lost at variance 100, and half of them at 50)."""
     synthesize(tmp_path / "p", preset="pairs", frames=2, noise_var=100.0, seed=2,
                clean_frame0=True)
-    for pair in sorted((tmp_path / "p").glob("pair_*")):
+    pairs = sorted((tmp_path / "p").glob("pair_*"))
+    assert len(pairs) == 2
+    for pair in pairs:
         res = _run(pair)
         _, gt, _ = read_motion_csv(pair / "groundtruth_motion.csv")
         err = se3_inv(gt[0]) @ res[1].prev_from_cur

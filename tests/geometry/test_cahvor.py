@@ -267,7 +267,9 @@ def test_a_drive_seen_through_the_navcam_model_tracks_within_1_percent(tmp_path)
     assert map_y.min() > 0 and map_y.max() < K.height - 1
     seq = tmp_path / "navcam"
     (seq / "frames").mkdir(parents=True)
-    for p in sorted((tmp_path / "src" / "frames").glob("*.png")):
+    frames = sorted((tmp_path / "src" / "frames").glob("*.png"))
+    assert len(frames) == 30
+    for p in frames:
         img = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
         cv2.imwrite(str(seq / "frames" / p.name), cv2.remap(img, map_x, map_y, cv2.INTER_LINEAR))
     _init(seq, _cahvor_yaml(m, size), {"normal": [float(v) for v in src.plane.normal],

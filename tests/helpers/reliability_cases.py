@@ -81,7 +81,9 @@ def make_base_sequence(root: Path) -> Path:
 
 
 def _frames(seq: Path) -> list[Path]:
-    return sorted((seq / "frames").glob("*.png"))
+    frames = sorted((seq / "frames").glob("*.png"))
+    assert frames, f"no frames in {seq}"
+    return frames
 
 
 def _copy(tmp: Path, seq: Path) -> Path:

@@ -17,13 +17,16 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from monovo_cli.errors import InputError, MonovoError
-from monovo_cli.io.formats import MOTION_COLUMNS, STD_COLUMNS, TRAJECTORY_COLUMNS, read_motion_csv, read_tum
+from monovo_cli.io.formats import (
+    MOTION_COLUMNS,
+    STD_COLUMNS,
+    TRAJECTORY_COLUMNS,
+    read_motion_csv,
+    read_motion_stats,
+    read_trajectory_csv,
+    read_tum,
+)
 from monovo_cli.io.model import load_model
-
-try:  # added with monovo overlay
-    from monovo_cli.io.formats import read_motion_stats, read_trajectory_csv
-except ImportError:  # pragma: no cover
-    read_motion_stats = read_trajectory_csv = None
 
 EXAMPLES = 500
 FUZZ = settings(max_examples=EXAMPLES, deadline=None,
@@ -165,7 +168,6 @@ def test_fuzz_read_motion_csv(scratch, data):
     _check_poses(poses, len(frames))
 
 
-@pytest.mark.skipif(read_trajectory_csv is None, reason="no trajectory.csv reader")
 @FUZZ
 @given(data=_payload(_trajectory_text))
 def test_fuzz_read_trajectory_csv(scratch, data):
@@ -178,7 +180,6 @@ def test_fuzz_read_trajectory_csv(scratch, data):
     _check_poses(poses, len(frames))
 
 
-@pytest.mark.skipif(read_motion_stats is None, reason="no motion stats reader")
 @FUZZ
 @given(data=_payload(_motion_text))
 def test_fuzz_read_motion_stats(scratch, data):

@@ -33,6 +33,7 @@ def load_sequence(seq: Path):
     c = init["camera"]
     cam = PinholeCamera(c["width"], c["height"], c["fx"], c["fy"], c["cx"], c["cy"])
     frames = sorted((seq / "frames").glob("*.png"))
+    assert frames, f"no frames in {seq}"
     images = [cv2.imread(str(f), cv2.IMREAD_UNCHANGED) for f in frames]
     n0 = np.array(init["ground"]["normal"], dtype=float)
     d0 = float(init["ground"]["distance"])

@@ -64,6 +64,7 @@ def test_a_jump_is_bridged_by_a_fresh_keyframe(drive, tmp_path):
     seq = tmp_path / "seq"
     shutil.copytree(drive, seq)
     paths = sorted((seq / "frames").glob("*.png"))
+    assert len(paths) == 24
     far = tmp_path / "far"
     synthesize(far, preset="drive", frames=24, size=(160, 160), noise_var=10.0, seed=12)
     for k, p in enumerate(paths[8:], start=8):
