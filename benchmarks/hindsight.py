@@ -30,13 +30,13 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import final_drift, load, machine, one_core
-from monovo_cli.mapping.hindsight import KeyRecord, segment_lifts, smoothed_distances, smoothed_poses
 from monovo_cli.core.odometry import track
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_tum
 from monovo_cli.io.frames import FrameSequence
+from monovo_cli.mapping.hindsight import KeyRecord, segment_lifts, smoothed_distances, smoothed_poses
 from monovo_cli.synth.write import synthesize
 
 CASES = ("flat", "rolling", "slope", "rocks", "plane")

@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 import pytest
 
-from benchmarks.common import MER_HEIGHT, mer_camera, mer_pose, mer_renderer
+from benchmarks.common import mer_pose, mer_renderer
 from monovo_cli.core.recovery.features import (
     CHEAP,
     FeatureOptions,
@@ -25,7 +25,9 @@ from monovo_cli.core.recovery.features import (
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import make_pose, se3_inv, so3_exp, so3_log
 from monovo_cli.geometry.plane import Plane
+from monovo_cli.synth.motion import DRIVE_MAST_HEIGHT
 from monovo_cli.synth.render import GroundRenderer, ground_in_camera
+from monovo_cli.synth.rover import mer_camera
 
 SIZE = 384
 START = (1.0, 1.0, 30.0)  # x, y (m), heading (deg) of the keyframe
@@ -61,7 +63,7 @@ def scene():
 def test_pose_from_exact_homography_is_exact():
     """Any scale and sign of H_n = c (R + t n^T / d): the pose comes back to 1e-9."""
     rng = np.random.default_rng(5)
-    cam = mer_camera(SIZE)
+    cam = mer_camera(SIZE, SIZE)
     for _ in range(20):
         n = np.array([0.0, math.cos(math.radians(45)), math.sin(math.radians(45))])
         n = so3_exp(rng.uniform(-0.3, 0.3, 3)) @ n
@@ -91,7 +93,7 @@ def test_pose_from_homography_refuses_the_far_side_of_the_plane():
     # current camera 1 m beyond the plane (key z = 2), looking back up: R = diag(1, -1, -1)
     R = np.diag([1.0, -1.0, -1.0])
     T = make_pose(R, -R @ np.array([0.0, 0.0, 2.0]))
-    rays = mer_camera(64).rays(np.array([[10.0, 10.0], [50.0, 20.0], [30.0, 60.0]]))
+    rays = mer_camera(64, 64).rays(np.array([[10.0, 10.0], [50.0, 20.0], [30.0, 60.0]]))
     X = plane.intersect(rays)
     assert np.all(X @ T[2, :3] + T[2, 3] > 0)  # in front of both cameras
     H_n = T[:3, :3] + np.outer(T[:3, 3], plane.normal) / plane.distance
@@ -199,7 +201,7 @@ def test_lens_distortion_is_removed_from_the_keypoints():
     w = h = 256
     pad = 64
     dist = (-0.25, 0.06, 0.0, 0.0, 0.0)
-    base = mer_camera(w)
+    base = mer_camera(w, w)
     dcam = PinholeCamera(w, h, base.fx, base.fy, base.cx, base.cy, dist)
     big = PinholeCamera(w + 2 * pad, h + 2 * pad, base.fx, base.fy, base.cx + pad, base.cy + pad)
     _, r = mer_renderer(w)
@@ -228,7 +230,7 @@ def test_lens_distortion_is_removed_from_the_keypoints():
 def test_ground_mask_is_the_ground_below_the_horizon():
     """A level camera sees the ground below the image centre row only; region and mask cut it."""
     cam = PinholeCamera(200, 100, 100.0, 100.0, 99.5, 49.5)
-    plane = Plane(np.array([0.0, 1.0, 0.0]), MER_HEIGHT)  # level: horizon through cy
+    plane = Plane(np.array([0.0, 1.0, 0.0]), DRIVE_MAST_HEIGHT)  # level: horizon through cy
     m = ground_mask(cam, plane, min_depression_deg=0.0)
     rows = np.nonzero(m.any(axis=1))[0]
     assert m.dtype == np.uint8 and set(np.unique(m)) == {0, 255}
