@@ -1,4 +1,9 @@
-"""Shared helpers of the benchmark scripts: machine description, error measures."""
+"""Shared helpers of the benchmark scripts: machine description, error tables, scenes.
+
+The error measures and the cameras are the package's (monovo_cli.evaluation.metrics,
+monovo_cli.geometry.trajectory, monovo_cli.synth): the benchmarks measure with what
+``monovo eval`` and ``monovo synth`` use, not with copies of them.
+"""
 
 from __future__ import annotations
 
@@ -12,7 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
-from monovo_cli.geometry.lie import se3_inv, so3_log
+from monovo_cli.evaluation import metrics
+from monovo_cli.evaluation.metrics import relative_motion_errors
+from monovo_cli.geometry.lie import make_pose, se3_inv, so3_exp, so3_log
+from monovo_cli.geometry.trajectory import path_length
+from monovo_cli.io.formats import STD_COLUMNS
+from monovo_cli.synth.motion import DRIVE_MAST_HEIGHT, MER_PITCH_DEG, camera_mount
+from monovo_cli.synth.rover import mer_camera
 
 
 def machine() -> str:
@@ -44,19 +55,19 @@ def machine() -> str:
 def motion_errors(est: np.ndarray, gt: np.ndarray) -> np.ndarray:
     """Per-axis errors (6,) of one relative motion: translation (m) and rotation vector (deg).
 
-    Both are ``prev_from_cur`` 4x4 poses; rotation errors are differences of rotation vectors,
-    as the paper's Tables 10.1/10.2 compare parameters axis by axis.
+    Both are ``prev_from_cur`` 4x4 poses; the errors are ``monovo eval``'s
+    (:func:`~monovo_cli.evaluation.metrics.relative_motion_errors` of the two-pose paths
+    ``[I, est]`` and ``[I, gt]``): differences of rotation vectors, as the paper's
+    Tables 10.1/10.2 compare parameters axis by axis.
     """
-    dt = est[:3, 3] - gt[:3, 3]
-    dr = np.degrees(so3_log(est[:3, :3]) - so3_log(gt[:3, :3]))
-    return np.concatenate([dt, dr])
+    start = np.eye(4)
+    return relative_motion_errors(np.stack([start, est]), np.stack([start, gt]))[0]
 
 
 def final_drift(est_world_from_cam: np.ndarray, gt_world_from_cam: np.ndarray) -> tuple[float, float, float]:
     """(final position error m, path length m, final heading error deg) of two trajectories (N,4,4)."""
     err = float(np.linalg.norm(est_world_from_cam[-1][:3, 3] - gt_world_from_cam[-1][:3, 3]))
-    steps = np.diff(gt_world_from_cam[:, :3, 3], axis=0)
-    dist = float(np.linalg.norm(steps, axis=1).sum())
+    dist = path_length(gt_world_from_cam)
     dR = se3_inv(gt_world_from_cam[-1]) @ est_world_from_cam[-1]
     return err, dist, float(np.degrees(np.linalg.norm(so3_log(dR[:3, :3]))))
 
@@ -67,11 +78,11 @@ def std_columns(path: Path) -> np.ndarray:
 
     with open(path, newline="") as f:
         rows = list(csv.DictReader(f))
-    cols = ("std_tx", "std_ty", "std_tz", "std_rx", "std_ry", "std_rz")
-    return np.array([[float(r[c]) if r[c] else np.nan for c in cols] for r in rows])
+    return np.array([[float(r[c]) if r[c] else np.nan for c in STD_COLUMNS] for r in rows])
 
 
-AXES = ("tx (m)", "ty (m)", "tz (m)", "rx (deg)", "ry (deg)", "rz (deg)")
+#: ``monovo eval``'s axes with their units: tx (m) .. rz (deg).
+AXES = tuple(f"{a} ({'m' if i < 3 else 'deg'})" for i, a in enumerate(metrics.AXES))
 
 
 def axis_table(rows: list[tuple[str, np.ndarray]], *, digits: int = 5) -> str:
@@ -274,42 +285,28 @@ def track_options(args):
 
 
 # --------------------------------------------------------------------------- MER spacing
-
-MER_HEIGHT = 1.5  # m, mast camera above the ground
-MER_PITCH_DEG = 45.0  # optical axis below the horizontal
-MER_FOV_DEG = 45.0  # horizontal field of view
-MER_STEP = 0.75  # m per frame, forward
-MER_TURN_DEG = 18.0  # per frame, turning in place
+# The camera, pitch, mast height and steps are monovo_cli.synth's (``synth --preset mer``):
+# synth.rover.mer_camera, synth.motion.MER_PITCH_DEG, DRIVE_MAST_HEIGHT, MER_STEP (a range).
 
 
-def mer_camera(width: int, height: int | None = None):
-    """The MER-like camera: ``MER_FOV_DEG`` horizontal field of view, no distortion."""
-    from monovo_cli.geometry.camera import PinholeCamera
-
-    height = width if height is None else height
-    f = 0.5 * width / np.tan(np.radians(0.5 * MER_FOV_DEG))
-    return PinholeCamera(width, height, f, f, (width - 1) / 2.0, (height - 1) / 2.0)
-
-
-def mer_pose(x: float, y: float, heading_deg: float, *, height: float = MER_HEIGHT,
+def mer_pose(x: float, y: float, heading_deg: float, *, height: float = DRIVE_MAST_HEIGHT,
              pitch_deg: float = MER_PITCH_DEG) -> np.ndarray:
     """``g_from_cam`` (4x4) of the mast camera at ground position ``(x, y)`` m, looking along
-    ``heading_deg`` (about the ground normal z_G, from x_G) and ``pitch_deg`` below the horizon."""
-    from monovo_cli.geometry.lie import make_pose
-    from monovo_cli.synth.motion import body_from_camera
-
-    a = np.radians(heading_deg)
-    Rz = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
-    return make_pose(Rz @ body_from_camera(np.radians(pitch_deg)), np.array([x, y, height]))
+    ``heading_deg`` (about the ground normal z_G, from x_G) and ``pitch_deg`` below the horizon:
+    synth's camera mount (:func:`~monovo_cli.synth.motion.camera_mount`), the mast over
+    ``(x, y)`` (not ahead of it) on flat ground."""
+    ground = make_pose(so3_exp(np.array([0.0, 0.0, np.radians(heading_deg)])), np.array([x, y, 0.0]))
+    return ground @ camera_mount(pitch_deg, height, forward=0.0)
 
 
 def mer_renderer(width: int, height: int | None = None, *, texture_seed: int = 3,
                  supersample: int = 2, metres_per_texel: float = 0.004):
-    """``(camera, GroundRenderer)`` of the MER-like camera over the procedural Mars texture
-    (1024 texels, period 4.1 m at the default scale)."""
+    """``(camera, GroundRenderer)`` of synth's MER camera (45 deg field of view; square images
+    unless ``height``) over the procedural Mars texture (1024 texels, period 4.1 m at the
+    default scale)."""
     from monovo_cli.synth.render import GroundRenderer
     from monovo_cli.synth.texture import GroundTexture, procedural_texture
 
-    cam = mer_camera(width, height)
+    cam = mer_camera(width, width if height is None else height)
     tex = GroundTexture(procedural_texture(1024, texture_seed), metres_per_texel)
     return cam, GroundRenderer(cam, tex, supersample=supersample)

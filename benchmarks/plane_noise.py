@@ -18,11 +18,11 @@ import argparse
 import tempfile
 from pathlib import Path
 
+import monovo_cli.core.plane.tracker as plane_tracker
 from benchmarks.common import machine, one_core
 from benchmarks.peers import monovo_on_drive
 from benchmarks.real import REAL, SEQUENCES
 from benchmarks.terrain import NOISE_VAR, SIZE
-from monovo_cli.core import plane_tracker
 from monovo_cli.synth.terrain import TERRAINS
 from monovo_cli.synth.write import synthesize
 

@@ -324,8 +324,11 @@ def section_choices(seqs: list[RealSequence] | None, args) -> None:
 
 
 def section_cost(seqs, args) -> None:
-    from benchmarks.common import MER_STEP, mer_pose, mer_renderer
+    from benchmarks.common import mer_pose, mer_renderer
+    from monovo_cli.synth.motion import MER_STEP
     from monovo_cli.synth.render import ground_in_camera
+
+    step = MER_STEP[1]  # synth's longest MER step, 0.75 m
 
     print("### Cost per call on a rendered MER-spacing pair (0.75 m forward)\n")
     print("ms per call, CPU time of one core, mean of 10 calls; 'cached': the keyframe's "
@@ -335,8 +338,8 @@ def section_cost(seqs, args) -> None:
     rows = []
     for size in (256, 512, 1024):
         cam, renderer = mer_renderer(size)
-        g0, g1 = mer_pose(1.0, 1.0, 30.0), mer_pose(1.0 + MER_STEP * np.cos(np.radians(30.0)),
-                                                    1.0 + MER_STEP * np.sin(np.radians(30.0)), 30.0)
+        g0, g1 = mer_pose(1.0, 1.0, 30.0), mer_pose(1.0 + step * np.cos(np.radians(30.0)),
+                                                    1.0 + step * np.sin(np.radians(30.0)), 30.0)
         rng = np.random.default_rng(0)
         a, b = (np.clip(np.rint(renderer.render(g) + rng.normal(0.0, np.sqrt(10.0), (size, size))),
                         0, 255).astype(np.uint8) for g in (g0, g1))

@@ -32,7 +32,7 @@ import numpy as np
 
 import monovo_cli.core.odometry as odometry
 import monovo_cli.core.plane.tracker as plane_tracker
-from benchmarks.common import machine, one_core
+from benchmarks.common import final_drift, machine, one_core
 from monovo_cli.core.estimator.estimate import KeyLevel, estimate_motion
 from monovo_cli.core.estimator.terrain_grid import plane_axes, refine_pose_and_terrain_grid
 from monovo_cli.core.keyframe import build_keyframe
@@ -118,11 +118,7 @@ def tracked(seq: Path, frames: int, options: TrackOptions, points: str | None) -
     finally:
         odometry.build_keyframe = plane_tracker.build_keyframe = build
     _, gt = read_tum(seq / "groundtruth.tum")
-    P = np.array([r.world_from_cam[:3, 3] for r in res])
-    path = float(np.sum(np.linalg.norm(np.diff(gt[:len(P), :3, 3], axis=0), axis=1)))
-    err = float(np.linalg.norm(P[-1] - gt[len(P) - 1][:3, 3]))
-    heading = float(np.degrees(np.linalg.norm(so3_log(res[-1].world_from_cam[:3, :3].T
-                                                      @ gt[len(P) - 1][:3, :3]))))
+    err, path, heading = final_drift(np.array([r.world_from_cam for r in res]), gt[:len(res)])
     return (f"{100 * err / path:.3f} | {heading:.3f} | "
             f"{sum(r.status.value == 'lost' for r in res)} | {len(res) / seconds:.1f}")
 

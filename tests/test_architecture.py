@@ -31,7 +31,9 @@ LONG_MARK = "Long module:"  # a module above MAX_LINES says why at its top, afte
 
 
 def _modules():
-    for path in sorted(PKG.rglob("*.py")):
+    paths = sorted(PKG.rglob("*.py"))
+    assert paths, f"no modules under {PKG}"
+    for path in paths:
         rel = path.relative_to(PKG).with_suffix("")
         yield ".".join(("monovo_cli",) + rel.parts), path
 

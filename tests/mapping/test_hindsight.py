@@ -1,0 +1,160 @@
+"""The poses re-scaled in hindsight (monovo_cli.mapping.smoothing), against hand-made chains."""
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from monovo_cli.core.options import TrackOptions
+from monovo_cli.core.plane.belief import PlaneLink
+from monovo_cli.core.run import KeyRecord, RunRecorder
+from monovo_cli.geometry.lie import make_pose, se3_inv, so3_exp
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.io.formats import read_tum
+from monovo_cli.mapping.smoothing import (
+    segment_log_distance_ratios,
+    smoothed_distances,
+    smoothed_poses,
+)
+from monovo_cli.pipeline.track import track_sequence
+from monovo_cli.synth.write import synthesize
+from tests.helpers.plane_helpers import N0
+
+
+def drive(n: int) -> np.ndarray:
+    """(n, 4, 4) a camera over the plane N0 (1.5 m below), moving 5 cm per frame along the
+    ground and turning 1 deg per frame about its normal: the true poses, camera 0 = world."""
+    fwd = np.cross(N0, [1.0, 0.0, 0.0])
+    out, T = [np.eye(4)], np.eye(4)
+    for _ in range(n - 1):
+        T = T @ make_pose(so3_exp(-N0 * math.radians(1.0)), 0.05 * fwd)
+        out.append(T)
+    return np.array(out)
+
+
+def measured(truth: np.ndarray, keys: list[int], scale: dict[int, float]) -> np.ndarray:
+    """The poses a tracker composes when every motion of keyframe ``k``'s segment came out
+    with its translation times ``scale[k]`` (a plane ``scale[k]`` times too far)."""
+    out = truth.copy()
+    seg = np.searchsorted(keys, np.arange(len(truth)), side="right") - 1
+    for i in range(1, len(truth)):
+        step = se3_inv(truth[i - 1]) @ truth[i]
+        step[:3, 3] *= scale[keys[seg[i - 1]]]
+        out[i] = out[i - 1] @ step
+    return out
+
+
+def test_a_keyframe_the_chain_corrects_puts_its_segment_and_all_after_it_back():
+    """Keyframe 0's plane was 1.54 m where the ground is 1.5 m below (frame 0 at a crest):
+    its segment's translations came out 1.54 / 1.5 too long and every later pose carries
+    that. Its successor's link says -4 cm (gain 1), so hindsight re-scales the segment and
+    the poses after it fall back on the truth; keyframes 5 and 9 were right and stay."""
+    truth = drive(14)
+    keys = [0, 5, 9]
+    est = measured(truth, keys, {0: 1.54 / 1.5, 5: 1.0, 9: 1.0})
+    assert np.linalg.norm(est[-1][:3, 3] - truth[-1][:3, 3]) > 0.006  # 25 cm at 2.7 %
+    planes = [Plane(N0, 1.54), Plane(N0, 1.5), Plane(N0, 1.5)]
+    links = [None, PlaneLink(np.eye(3), np.array([-0.04, 0.0, 0.0])),
+             PlaneLink(np.eye(3), np.zeros(3))]
+    records = [(k, KeyRecord(k, est[k], p, link)) for k, p, link in zip(keys, planes, links)]
+    out = smoothed_poses(range(14), est, records)
+    assert out == pytest.approx(truth, abs=1e-12)
+    # no link (a chain that begins at each keyframe, or --no-smooth): nothing moves
+    plain = [(k, KeyRecord(k, est[k], p, None)) for k, p in zip(keys, planes)]
+    assert smoothed_poses(range(14), est, plain) == pytest.approx(est, abs=1e-12)
+
+
+def test_hindsight_keeps_the_last_keyframe_of_an_index_and_frames_before_the_first():
+    """A keyframe rebuilt in place replaces the one of its index; frames before the first
+    keyframe (none in a run, where frame 0 is one) keep their poses."""
+    truth = drive(10)
+    est = measured(truth, [0, 4], {0: 1.0, 4: 1.02})
+    rec = RunRecorder()
+
+    def add(k, link):
+        rec.add_keyframe(SimpleNamespace(index=k, world_from_key=est[k], plane=Plane(N0, 1.5),
+                                         link=link))
+
+    def poses():
+        return smoothed_poses(range(10), est, [(k.index, k) for k in rec.keyframes])
+
+    add(4, None)
+    add(6, PlaneLink(np.eye(3), np.array([0.9, 0, 0])))
+    add(6, None)  # the rebuilt one: no link
+    out = poses()
+    assert out == pytest.approx(est, abs=1e-12)
+    add(9, PlaneLink(np.eye(3), np.array([-0.03, 0, 0])))
+    out = poses()
+    assert out[:7] == pytest.approx(est[:7], abs=1e-12)  # keyframe 4 has no successor link
+    step = se3_inv(est[6]) @ est[7]
+    assert np.linalg.norm(out[7][:3, 3] - out[6][:3, 3]) == pytest.approx(
+        np.linalg.norm(step[:3, 3]) * 1.47 / 1.5, rel=1e-12)
+
+
+def bobbing_chain(held: bool = False) -> tuple[np.ndarray, np.ndarray, list]:
+    """A camera that bobs 3 cm over the plane N0 with a period of 10 frames, keyframes at
+    frames 0, 10 and 20: all at crests, 1.53 m above the ground whose nominal distance
+    (init.yaml) is 1.5 m. The tracker anchored frame 0 on 1.5 m, so every translation came
+    out 1.5 / 1.53 too short, and the chain carried that exactly (its links' carried
+    distances are the keyframes' own). ``held``: keyframe 0's plane confirmed as exact.
+    Returns ``(true poses, measured poses, keys)``."""
+    along = drive(30)
+    truth = along.copy()
+    for f in range(30):  # raise the camera: its distance to the ground 1.5 + 0.03 cos
+        truth[f][:3, 3] += (1.53 - (1.5 + 0.03 * math.cos(2 * math.pi * f / 10))) * N0
+    s = 1.5 / 1.53
+    est = truth.copy()
+    est[:, :3, 3] *= s  # (positions scale with the translations: same rotations)
+    start = 1e-14 if held else 0.05 ** 2
+    keys = [(0, KeyRecord(0, est[0], Plane(N0, 1.5), None))]
+    for k in (10, 20):
+        link = PlaneLink(np.eye(3), np.zeros(3), propagated_distance=1.5, propagated_variance=0.03 ** 2,
+                         previous_variance=start if k == 10 else 0.04 ** 2, mounting=(1.5, 0.05))
+        key_plane = Plane(se3_inv(est[k])[:3, :3] @ est[0][:3, :3] @ N0, 1.5)
+        keys.append((k, KeyRecord(k, est[k], key_plane, link)))
+    return truth, est, keys
+
+
+def test_the_mounting_prior_holds_over_each_segment_s_frames_not_its_keyframe_alone():
+    """Every keyframe is at a crest: by the keyframes alone the chain is at its nominal
+    distance and nothing moves; over their segments' frames the camera is on average at the
+    nominal distance, so the keyframes are 1.53 m up and the trajectory comes back to the
+    truth (measured: 1.9 % of the distance at the end -> 0.010 %)."""
+    truth, est, keys = bobbing_chain()
+    anchored = [k for _, k in keys]
+    assert smoothed_distances(anchored) == pytest.approx([1.5, 1.5, 1.5], abs=1e-9)
+    log_ratios = segment_log_distance_ratios(range(30), est, keys)
+    assert log_ratios[0] == pytest.approx(math.log(1.5 / 1.53), abs=2e-4)
+    assert smoothed_distances(anchored, log_ratios) == pytest.approx([1.53] * 3, abs=3e-4)
+    path = float(np.sum(np.linalg.norm(np.diff(truth[:, :3, 3], axis=0), axis=1)))
+    before = np.linalg.norm(est[-1][:3, 3] - truth[-1][:3, 3]) / path
+    out = smoothed_poses(range(30), est, keys)
+    after = np.linalg.norm(out[-1][:3, 3] - truth[-1][:3, 3]) / path
+    assert before > 0.01 and after < 2e-4
+    # rotations are the images' and stay
+    assert out[:, :3, :3] == pytest.approx(est[:, :3, :3], abs=1e-12)
+
+
+def test_a_keyframe_plane_confirmed_as_exact_is_held_in_hindsight():
+    """init.yaml confirmed by the images (keyframe 0's distance variance ~0): keyframe 0
+    keeps its distance; the later ones move only as far as their priors outweigh the chain."""
+    _, est, keys = bobbing_chain(held=True)
+    anchored = [k for _, k in keys]
+    d = smoothed_distances(anchored, segment_log_distance_ratios(range(30), est, keys))
+    assert d[0] == pytest.approx(1.5, abs=1e-9)
+    assert 1.5 < d[1] < d[2] < 1.53
+
+
+def test_the_summary_s_path_is_the_written_trajectory_s(tmp_path, capsys):
+    """`monovo track` prints the path length of trajectory.csv (re-scaled in hindsight), not
+    of motion.csv's motions composed, with -o DIR and with -o - alike."""
+    synthesize(tmp_path / "seq", preset="drive", terrain="flat", frames=30, size=(192, 192),
+               noise_var=10.0, seed=4)
+    s = track_sequence(tmp_path / "seq", None, tmp_path / "out", TrackOptions())
+    _, traj = read_tum(tmp_path / "out" / "trajectory.tum")
+    path = float(np.sum(np.linalg.norm(np.diff(traj[:, :3, 3], axis=0), axis=1)))
+    assert s.path_length == pytest.approx(path, rel=1e-6)
+    streamed = track_sequence(tmp_path / "seq", None, None, TrackOptions())
+    assert capsys.readouterr().out.count("\n") == 30  # the header and 29 rows
+    assert streamed.path_length == s.path_length
