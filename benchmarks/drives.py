@@ -31,11 +31,9 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from benchmarks.common import final_drift, machine, motion_errors, std_columns  # noqa: E402
-from monovo_cli.core.odometry import estimate_frames  # noqa: E402
+from monovo_cli import iter_track  # noqa: E402
 from monovo_cli.core.options import TrackOptions  # noqa: E402
-from monovo_cli.io.config import load_init  # noqa: E402
 from monovo_cli.io.formats import read_motion_csv, read_tum  # noqa: E402
-from monovo_cli.io.sources import open_frames  # noqa: E402
 from monovo_cli.pipeline.track import track_sequence  # noqa: E402
 from monovo_cli.synth.write import synthesize  # noqa: E402
 
@@ -102,11 +100,7 @@ def std_honesty(root: Path, n_pairs: int, seed: int) -> np.ndarray:
     synthesize(root / "pairs", preset="pairs", frames=n_pairs, noise_var=10.0, seed=seed)
     z = []
     for pair in sorted((root / "pairs").glob("pair_*")):
-        cfg = load_init(pair / "init.yaml")
-        fr = open_frames(pair / "frames")
-        plane = cfg.plane
-        res = list(estimate_frames(((f.index, f.timestamp, f.image) for f in fr), cfg.camera, plane,
-                         cfg.region, TrackOptions()))
+        res = list(iter_track(pair))
         _, gt, _ = read_motion_csv(pair / "groundtruth_motion.csv")
         e = motion_errors(res[1].prev_from_cur, gt[0])
         e[3:] = np.radians(e[3:])

@@ -3,7 +3,7 @@
     python -m benchmarks.hindsight                      # 4 terrain drives + a plane drive, 300 frames
     python -m benchmarks.hindsight --frames 150 --seed 1 --cases flat plane
 
-Each drive is tracked once, with default options (``monovo_cli.core.odometry.track``), and its
+Each drive is tracked once, with default options (``monovo_cli.track_frames``), and its
 poses written three ways (docs/algorithm.md, "The trajectory in hindsight"):
 
   streamed    motion.csv's motions composed (``track --no-smooth``);
@@ -30,13 +30,10 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import final_drift, load, machine, one_core
-from monovo_cli.core.odometry import estimate_frames
-from monovo_cli.core.options import TrackOptions
-from monovo_cli.core.run import KeyRecord
+from monovo_cli import track_frames
 from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_tum
-from monovo_cli.io.sources import open_frames
 from monovo_cli.mapping.smoothing import segment_log_distance_ratios, smoothed_distances, smoothed_poses
 from monovo_cli.synth.write import synthesize
 
@@ -53,22 +50,13 @@ def render(root: Path, kind: str, frames: int, seed: int) -> Path:
 
 
 def run_case(seq: Path, kind: str) -> dict:
-    cfg = load_init(seq / "init.yaml")
-    keys: dict[int, KeyRecord] = {}
-
-    def on_keyframe(key) -> None:
-        keys[key.index] = KeyRecord.of(key)
-
-    res = list(estimate_frames(((f.index, f.timestamp, f.image) for f in open_frames(seq / "frames")),
-                     cfg.camera, cfg.plane, cfg.region, TrackOptions(), on_keyframe=on_keyframe,
-                     sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg))
-    index = [r.index for r in res]
-    W = np.array([r.world_from_cam for r in res])
-    chain = sorted(keys.items())
+    run = track_frames(seq, smooth=False)
+    index, W = list(run.index), run.world_from_cam
+    chain = [(k.index, k) for k in run.keyframes]
     _, gt = read_tum(seq / "groundtruth.tum")
     ways = {"streamed": W, "keyframes": smoothed_poses(index, W, chain, segments=False),
             "segments": smoothed_poses(index, W, chain)}
-    row = {"kind": kind, "frames": len(res), "keys": len(chain)}
+    row = {"kind": kind, "frames": run.frames, "keys": len(chain)}
     for name, P in ways.items():
         err, dist, _ = final_drift(P, gt)
         rms = float(np.sqrt(np.mean(np.sum((P[:, :3, 3] - gt[:, :3, 3]) ** 2, axis=1))))

@@ -12,7 +12,7 @@ rendered (not timed), then, on one core (OpenCV, BLAS and OpenMP on one thread):
   runs it: PNG decoding, tracking, motion.csv streaming, trajectory files and plot. Frames/s
   over the whole call, and per frame between the first and the last frame (without the
   fixed start-up and final writing);
-* **estimator only** -- the frames decoded into memory first, then ``odometry.track``;
+* **estimator only** -- the frames decoded into memory first, then ``odometry.estimate_frames``;
 * **ECC peer** -- ``benchmarks.peers.EccPeer`` frame to frame on the same PNGs, decoding
   included, for the speed ratio;
 * **stages** -- a cProfile of the end-to-end run, each function's own time attributed to the
@@ -87,7 +87,7 @@ def end_to_end(seq: Path, out: Path) -> dict:
 
 
 def estimator_only(seq: Path) -> tuple[float, float]:
-    """Frames/s (wall, CPU) of ``odometry.track`` over frames decoded beforehand."""
+    """Frames/s (wall, CPU) of ``odometry.estimate_frames`` over frames decoded beforehand."""
     frames = open_frames(seq)
     cfg = load_init(seq / "init.yaml")
     imgs = [(f.index, f.timestamp, f.image) for f in frames]

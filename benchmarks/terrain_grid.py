@@ -91,7 +91,7 @@ def pose_error(T: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
 
 
 def tracked(seq: Path, frames: int, options: TrackOptions, points: str | None) -> str:
-    """One run of ``odometry.track``; ``points`` 'depth' / 'plane' swaps every keyframe's
+    """One run of ``odometry.estimate_frames``; ``points`` 'depth' / 'plane' swaps every keyframe's
     points for the oracle's (module docstring). One table row."""
     build = odometry.build_keyframe
 

@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from monovo_cli import iter_track
 from monovo_cli.core.estimator.ground import barycentric
 from monovo_cli.core.keyframe import build_keyframe
-from monovo_cli.core.odometry import estimate_frames
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.lie import se3_inv, so3_log
@@ -23,11 +23,7 @@ from monovo_cli.synth.write import synthesize
 
 
 def _run(seq: Path, options: TrackOptions | None = None):
-    cfg = load_init(seq / "init.yaml")
-    frames = open_frames(seq / "frames")
-    plane = cfg.plane
-    gen = ((f.index, f.timestamp, f.image) for f in frames)
-    return list(estimate_frames(gen, cfg.camera, plane, cfg.region, options or TrackOptions()))
+    return list(iter_track(seq, options=options))
 
 
 @pytest.fixture(scope="module")

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from benchmarks.common import motion_errors
+from monovo_cli import iter_track
 from monovo_cli.core.estimator.estimate import estimate_motion
 from monovo_cli.core.keyframe import build_keyframe
-from monovo_cli.core.odometry import estimate_frames
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane.belief import (
     TILT_CHANGE_DEG,
@@ -30,9 +30,7 @@ from monovo_cli.core.plane.motion_covariance import (
 from monovo_cli.geometry.lie import adjoint, make_pose, se3_inv, se3_log, so3_exp
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.image.pyramid import build_pyramid
-from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_motion_csv
-from monovo_cli.io.sources import open_frames
 from monovo_cli.synth.motion import camera_mount
 from monovo_cli.synth.render import (
     GroundRenderer,
@@ -196,10 +194,7 @@ def test_the_first_frames_on_rolling_ground_are_covered_before_any_re_anchor(tmp
     seq = tmp_path / "rolling"
     synthesize(seq, preset="drive", terrain="rolling", frames=30, size=(256, 256), noise_var=10.0,
                seed=seed)
-    cfg = load_init(seq / "init.yaml")
-    res = list(estimate_frames(((f.index, f.timestamp, f.image) for f in open_frames(seq / "frames")),
-                     cfg.camera, cfg.plane, cfg.region, TrackOptions(),
-                     sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg))
+    res = list(iter_track(seq))
     _, gt, _ = read_motion_csv(seq / "groundtruth_motion.csv")
     status = [r.status.value for r in res[1:]]
     first = status.index("reanchored")

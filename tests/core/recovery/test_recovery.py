@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from monovo_cli import iter_track
 from monovo_cli.cli import main
-from monovo_cli.core.odometry import Odometry, estimate_frames
+from monovo_cli.core.odometry import Odometry
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.lie import se3_inv, so3_log
@@ -44,10 +45,7 @@ def test_noise_in_the_middle_is_lost_with_a_reason_and_tracking_resumes(drive, t
     seq = tmp_path / "seq"
     shutil.copytree(drive, seq)
     _noise_frames(seq, [9, 10, 11])
-    cfg = load_init(seq / "init.yaml")
-    fs = open_frames(seq / "frames")
-    res = list(estimate_frames(((f.index, f.timestamp, f.image) for f in fs), cfg.camera, cfg.plane,
-                     cfg.region, TrackOptions()))
+    res = list(iter_track(seq))
     for r in res[9:12]:
         assert r.status == FrameStatus.LOST and r.reason
     assert all(r.status != FrameStatus.LOST for r in res[12:])
@@ -69,9 +67,7 @@ def test_a_jump_is_bridged_by_a_fresh_keyframe(drive, tmp_path):
     synthesize(far, preset="drive", frames=24, size=(160, 160), noise_var=10.0, seed=12)
     for k, p in enumerate(paths[8:], start=8):
         shutil.copyfile(sorted((far / "frames").glob("*.png"))[k], p)
-    cfg = load_init(seq / "init.yaml")
-    res = list(estimate_frames(((f.index, f.timestamp, f.image) for f in open_frames(seq / "frames")),
-                     cfg.camera, cfg.plane, cfg.region, TrackOptions()))
+    res = list(iter_track(seq))
     run = longest = 0
     for r in res:
         run = run + 1 if r.status == FrameStatus.LOST else 0
