@@ -24,3 +24,16 @@ def test_sample_sequences_readme_commands_run_after_the_quickstart(tmp_path, mon
             code, output = run(*args, "-q")
             assert code == 0, (c, output)
     assert (tmp_path / "out" / "navcam_drive" / "overlay.mp4").is_file()
+
+
+def test_architecture_five_lines_track_the_sample_drive(monkeypatch, capsys):
+    """docs/architecture.md's "From Python" block, run as written from the repository root:
+    five lines that track the sample drive and print its 60 frames."""
+    text = (ROOT / "docs" / "architecture.md").read_text()
+    block = text.split("```python\n")[1].split("```")[0]
+    assert len([line for line in block.splitlines() if line.strip()]) == 5
+    monkeypatch.chdir(ROOT)
+    exec(compile(block, "architecture.md", "exec"), {})
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].split()[:2] == ["60", "0"] and lines[0].endswith(" m")
+    assert len(lines) == 61 and lines[1].startswith("0 ok")
