@@ -35,6 +35,7 @@ FLAG_WORDS = (
     ("allow overwriting or choose another output", "use --overwrite or another -o"),  # io.video
     ("(a tracking run writes one with its terrain products)",  # io.terrain
      "(written by 'monovo track SEQ -o DIR --terrain-out')"),
+    ("name one as the image topic", "name one with --topic"),  # io.sources.bag
 )
 
 

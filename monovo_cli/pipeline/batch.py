@@ -35,8 +35,8 @@ from monovo_cli.pipeline.batch_job import (
     DONE_FILE,
     THREAD_VARIABLES,
     JobOptions,
-    _job_options,
     available_cores,
+    checked_job_options,
     done_result,
     find_sequences,
     is_complete,
@@ -311,7 +311,7 @@ def run_batch(root: str | Path, out_root: str | Path, options: JobOptions | None
     """
     t0 = time.perf_counter()
     root, out_root = Path(root), Path(out_root)
-    opts = _job_options(options)
+    opts = checked_job_options(options)
     if resume and overwrite:
         raise MonovoError("choose one of resume (skip complete sequences) and overwrite "
                           "(redo all)")

@@ -158,7 +158,7 @@ def sequence_name(rel: Path) -> str:
 # --------------------------------------------------------------------------- one sequence
 
 
-def _job_options(options: JobOptions | None) -> JobOptions:
+def checked_job_options(options: JobOptions | None) -> JobOptions:
     """``options``, or the defaults for None.
 
     Raises TypeError for anything else (a programming error, not bad input).
@@ -242,7 +242,7 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: JobOptions | No
     else; ``traceback`` holds the details). KeyboardInterrupt and other BaseExceptions
     propagate.
     """
-    job = _job_options(options)
+    job = checked_job_options(options)
     seq_dir, out_dir = Path(seq_dir), Path(out_dir)
     t0 = time.perf_counter()
     try:
@@ -306,7 +306,7 @@ def is_complete(seq_dir: str | Path, out_dir: str | Path,
     saying what is missing or different.
     """
     seq_dir, out_dir = Path(seq_dir), Path(out_dir)
-    job = _job_options(options)
+    job = checked_job_options(options)
     done = out_dir / DONE_FILE
     if not done.is_file():
         return False, f"no {DONE_FILE}"

@@ -58,3 +58,15 @@ def test_import_stays_light():
     code = ("import sys, monovo_cli; assert 'numpy' not in sys.modules and 'cv2' not in "
             "sys.modules; monovo_cli.track_frames; assert 'cv2' in sys.modules")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_frame_0_is_decoded_once(tmp_path, monkeypatch):
+    """track_sequence opens the sequence once: frame 0 carries the size check, the ground
+    model and the first row, from one decode."""
+    from monovo_cli.io.sources import ImageFolder
+
+    calls = []
+    decode = ImageFolder._decode
+    monkeypatch.setattr(ImageFolder, "_decode", lambda self, i: (calls.append(i), decode(self, i))[1])
+    track_sequence(SAMPLE, None, tmp_path / "out", monovo_cli.TrackOptions())
+    assert calls.count(0) == 1 and sorted(calls) == list(range(60))

@@ -104,7 +104,7 @@ class RosBag(FrameSource):
             if len(images) != 1:
                 listed = ", ".join(sorted(images)) or "none"
                 raise InputError(f"{self.dir}: {len(images)} image topics ({listed}); name one "
-                                 "with --topic")
+                                 "as the image topic")
             topic = next(iter(images))
         conns = [c for c in self._reader.connections if c.topic == topic]
         if not conns:
