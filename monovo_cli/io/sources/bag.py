@@ -103,8 +103,8 @@ class RosBag(FrameSource):
         if topic is None:
             if len(images) != 1:
                 listed = ", ".join(sorted(images)) or "none"
-                raise InputError(f"{self.dir}: {len(images)} image topics ({listed}); name one "
-                                 "as the image topic")
+                raise InputError(f"{self.dir}: {len(images)} image topics ({listed}); "
+                                 "name one as the image topic")
             topic = next(iter(images))
         conns = [c for c in self._reader.connections if c.topic == topic]
         if not conns:
