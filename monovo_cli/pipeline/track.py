@@ -38,6 +38,7 @@ from monovo_cli.pipeline.preflight import (
     model_keyframe,
 )
 from monovo_cli.pipeline.products import write_terrain, write_trajectory_plot
+from monovo_cli.pipeline.threads import one_blas_thread
 from monovo_cli.pipeline.tracking import Tracking, naming, open_sequence, read_mask, read_prior
 
 log = logging.getLogger(__name__)
@@ -79,7 +80,7 @@ def init_model(seq: Path, params: Path | None, out: Path, options: TrackOptions,
     opened = open_sequence(seq, params, topic=topic)
     cfg, first = opened.config, opened.first
     usable = read_mask(Path(mask), cfg) if mask is not None else None
-    with naming(first.path):
+    with naming(first.path), one_blas_thread():
         key = build_keyframe(0, first.image, cfg.camera, cfg.plane, cfg.region, np.eye(4), options,
                              mask=usable)
     save_model(out, key, cfg.camera, cfg.region, frame0=first.image, options=options, mask=usable)

@@ -35,6 +35,7 @@ from monovo_cli.io.config import InitConfig, check_frame_size, load_init
 from monovo_cli.io.sources import Frame, FrameSource, find_init_yaml, open_frames, resolve_sequence
 from monovo_cli.mapping.smoothing import SmoothedDrive, smooth_drive
 from monovo_cli.mapping.terrain_map import TerrainMap
+from monovo_cli.pipeline.threads import each_on_one_blas_thread, one_blas_thread
 
 log = logging.getLogger(__name__)
 
@@ -135,10 +136,10 @@ class Tracking:
             if self.terrain is not None:
                 self.terrain.add(key, self._last_image)
 
-        tracked = estimate_frames(self._images(), cfg.camera, cfg.plane, cfg.region, self.options,
-                                  mask=self._mask, first_keyframe=self._first_key,
-                                  priors=self._priors, on_keyframe=on_keyframe,
-                                  sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg)
+        tracked = each_on_one_blas_thread(estimate_frames(
+            self._images(), cfg.camera, cfg.plane, cfg.region, self.options, mask=self._mask,
+            first_keyframe=self._first_key, priors=self._priors, on_keyframe=on_keyframe,
+            sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg))
         with naming(self.seq.first.path):  # frame 0 builds the ground model
             first = next(tracked)
         for res in _chain(first, tracked):
@@ -162,7 +163,8 @@ class Tracking:
         W = rec.world_from_cam.reshape(-1, 4, 4)
         if not self.smooth:
             return W
-        return smooth_drive(rec.index, W, [(k.index, k) for k in rec.keyframes]).world_from_cam
+        with one_blas_thread():
+            return smooth_drive(rec.index, W, [(k.index, k) for k in rec.keyframes]).world_from_cam
 
     def result(self, seconds: float = 0.0) -> TrackRun:
         """The run of the frames recorded, smoothed in hindsight once (``smooth``); the
@@ -170,11 +172,12 @@ class Tracking:
         smoothing (:attr:`drive`)."""
         rec = self._recorder
         W = rec.world_from_cam.reshape(-1, 4, 4)
-        self.drive = (smooth_drive(rec.index, W, [(k.index, k) for k in rec.keyframes])
-                      if self.smooth and len(rec) else None)
-        if self.terrain is not None and len(rec):
-            last_lost = rec.last_status == FrameStatus.LOST
-            self.terrain.finish(None if last_lost else self._last_image, W[-1])
+        with one_blas_thread():
+            self.drive = (smooth_drive(rec.index, W, [(k.index, k) for k in rec.keyframes])
+                          if self.smooth and len(rec) else None)
+            if self.terrain is not None and len(rec):
+                last_lost = rec.last_status == FrameStatus.LOST
+                self.terrain.finish(None if last_lost else self._last_image, W[-1])
         return rec.result(self.drive.world_from_cam if self.drive is not None else None, seconds)
 
     def _images(self) -> Iterator[tuple[int, float, np.ndarray | None]]:

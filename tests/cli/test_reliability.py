@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 import re
 import subprocess
 import sys
@@ -207,6 +208,15 @@ def drive(synth_drive) -> Path:
     return synth_drive(preset="drive", frames=40, size=(128, 128), seed=7)
 
 
+@pytest.fixture(scope="module")
+def rolling_drive(tmp_path_factory) -> Path:
+    """A drive over rolling ground: its keyframes solve a relief of more than a hundred
+    heights, whose normal equations a threaded BLAS splits among its threads."""
+    seq = tmp_path_factory.mktemp("determinism") / "rolling"
+    synthesize(seq, preset="drive", frames=24, size=(192, 192), terrain="rolling", seed=5)
+    return seq
+
+
 def _outputs(out: Path) -> dict[str, bytes]:
     return {n: (out / n).read_bytes() for n in ("motion.csv", "trajectory.csv", "trajectory.tum")}
 
@@ -220,16 +230,38 @@ def test_same_inputs_same_bytes(drive, tmp_path):
     assert runs[0] == runs[1]
 
 
-def test_same_bytes_with_one_or_two_opencv_threads(drive, tmp_path):
-    runs = []
-    for threads in (1, 2):
-        out = tmp_path / f"t{threads}"
-        proc = subprocess.run([sys.executable, "-c", _WITH_THREADS, str(threads), "track",
-                               str(drive), "-o", str(out), "-q"],
-                              capture_output=True, text=True, timeout=300)
+@pytest.mark.parametrize("seq", ["drive", "rolling_drive"])
+def test_same_bytes_with_one_or_two_blas_and_opencv_threads(seq, request, tmp_path):
+    """BLAS/OpenMP threads (their variables, read when numpy loads) and OpenCV's threads,
+    each 1 or 2: the same bytes."""
+    from monovo_cli.pipeline.batch_job import THREAD_VARIABLES
+
+    seq = request.getfixturevalue(seq)
+    runs = {}
+    for blas, opencv in ((1, 1), (2, 1), (1, 2)):
+        out = tmp_path / f"blas{blas}_opencv{opencv}"
+        env = {**os.environ, **{var: str(blas) for var in THREAD_VARIABLES}}
+        proc = subprocess.run([sys.executable, "-c", _WITH_THREADS, str(opencv), "track",
+                               str(seq), "-o", str(out), "-q"],
+                              capture_output=True, text=True, timeout=300, env=env)
         assert proc.returncode == 0, proc.stderr
-        runs.append(_outputs(out))
-    assert runs[0] == runs[1]
+        runs[blas, opencv] = _outputs(out)
+    for knob in ((2, 1), (1, 2)):
+        for name, data in runs[knob].items():
+            assert data == runs[1, 1][name], f"{name}: (BLAS, OpenCV) threads {knob} vs (1, 1)"
+
+
+def test_one_blas_thread_inside_and_restored_after():
+    from monovo_cli.pipeline import threads
+
+    with threads.one_blas_thread():
+        controls = threads._controls
+        assert controls, "numpy's BLAS has no thread control here"
+        with threads.one_blas_thread():  # nested: still one
+            assert [get() for get, _ in controls] == [1] * len(controls)
+        assert [get() for get, _ in controls] == [1] * len(controls)
+        before = [count for _, count in threads._saved]
+    assert [get() for get, _ in controls] == before
 
 
 def test_streamed_rows_equal_motion_csv(drive, tmp_path):

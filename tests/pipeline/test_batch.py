@@ -111,6 +111,29 @@ def test_batch_outputs_are_those_of_monovo_track(archive, local_out, tmp_path):
         assert (tmp_path / "t" / name).read_bytes() == (local_out / "a/s2" / name).read_bytes()
 
 
+def test_one_or_two_workers_and_monovo_track_give_the_same_bytes(tmp_path):
+    """A drive over rolling ground (its relief's normal equations are what a threaded BLAS
+    splits) and a flat one: the same bytes from 1 worker, 2 workers and ``monovo track`` in
+    this process, whatever its threads."""
+    archive = tmp_path / "archive"
+    synthesize(archive / "rolling", preset="drive", frames=24, size=(192, 192),
+               terrain="rolling", seed=5)
+    synthesize(archive / "flat", preset="drive", frames=8, size=(128, 128), seed=1)
+    for workers in ("1", "2"):
+        r = CliRunner().invoke(main, ["batch", str(archive), "-o", str(tmp_path / workers),
+                                      "--workers", workers, "-q"])
+        assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(main, ["track", str(archive / "rolling"), "-o", str(tmp_path / "t"),
+                                  "-q"])
+    assert r.exit_code == 0, r.output
+    for rel in ("rolling", "flat"):
+        for name in COMPARED:
+            one = (tmp_path / "1" / rel / name).read_bytes()
+            assert one == (tmp_path / "2" / rel / name).read_bytes(), f"{rel}/{name}"
+            if rel == "rolling":
+                assert one == (tmp_path / "t" / name).read_bytes(), f"{name}: batch vs track"
+
+
 def test_resume_redoes_only_the_incomplete(archive, local_out, tmp_path):
     out = tmp_path / "out"
     shutil.copytree(local_out, out)
