@@ -1,7 +1,7 @@
 """One BLAS thread while tracking, so that the outputs do not depend on the thread count.
 
 OpenBLAS (likewise MKL and BLIS) splits a factorisation or a product of large matrices (the
-relief's normal equations, over hundreds of vertex heights), and a long dot product, among
+terrain grid's normal equations, over hundreds of vertex heights), and a long dot product, among
 its threads, and the order of the floating-point sums follows the split: the last bits of a
 result depend on how many threads there are (``OPENBLAS_NUM_THREADS``, ``OMP_NUM_THREADS``,
 the machine's cores), and after Gauss-Newton iterations and keyframe decisions so does the
