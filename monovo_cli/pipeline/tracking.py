@@ -23,6 +23,7 @@ from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from monovo_cli.core.keyframe import Keyframe
@@ -102,13 +103,18 @@ class Tracking:
     ``skip_bad_frames`` records a frame that cannot be read (after frame 0) as lost instead
     of stopping; ``terrain`` keeps what tracking learns of the ground (:attr:`terrain`);
     ``stopped(index)`` adds to the message of a frame that cannot be read what was kept.
+    ``thumbnails`` > 0 keeps a small grey copy (uint8, at most ``thumbnail_side`` px on its
+    longer side) of at most that many keyframes' images (:attr:`thumbnails`, frame index ->
+    image): when there are more, every other one is dropped, frame 0 kept, so those kept
+    stay spread evenly over the drive.
     """
 
     def __init__(self, seq: OpenedSequence, options: TrackOptions | None = None, *,
                  mask: np.ndarray | None = None, priors: Mapping[int, np.ndarray] | None = None,
                  first_keyframe: Keyframe | None = None, skip_bad_frames: bool = False,
                  smooth: bool = True, terrain: bool = False,
-                 stopped: Callable[[int], str] | None = None) -> None:
+                 stopped: Callable[[int], str] | None = None, thumbnails: int = 0,
+                 thumbnail_side: int = 240) -> None:
         self.seq = seq
         self.options = options or TrackOptions()
         self.smooth = smooth
@@ -118,6 +124,10 @@ class Tracking:
         self._stopped = stopped or (lambda index: f"frames 0..{index - 1} were done")
         self._recorder = RunRecorder()
         self._last_image: np.ndarray | None = None
+        self._last_index = -1
+        self.thumbnails: dict[int, np.ndarray] = {}
+        self._thumbnail_limit, self._thumbnail_side = int(thumbnails), int(thumbnail_side)
+        self._thumbnail_stride, self._keyframes_seen, self._last_keyframe = 1, 0, -1
         self.drive: SmoothedDrive | None = None
 
     def __len__(self) -> int:
@@ -135,6 +145,8 @@ class Tracking:
             self._recorder.add_keyframe(key)
             if self.terrain is not None:
                 self.terrain.add(key, self._last_image)
+            if self._thumbnail_limit > 0:
+                self._keep_thumbnail(int(key.index))
 
         tracked = each_on_one_blas_thread(estimate_frames(
             self._images(), cfg.camera, cfg.plane, cfg.region, self.options, mask=self._mask,
@@ -146,6 +158,26 @@ class Tracking:
             if record:
                 self.record(res)
             yield res
+
+    def _keep_thumbnail(self, index: int) -> None:
+        """A small copy of the keyframe image just read (frame ``index``), evenly thinned."""
+        image = self._last_image
+        if image is None or index != self._last_index:
+            return
+        if index != self._last_keyframe:  # not a keyframe rebuilt in place
+            self._last_keyframe = index
+            self._keyframes_seen += 1
+        if (self._keyframes_seen - 1) % self._thumbnail_stride:
+            return
+        h, w = image.shape
+        s = min(1.0, self._thumbnail_side / max(h, w))
+        small = cv2.resize(image, (max(1, round(w * s)), max(1, round(h * s))),
+                           interpolation=cv2.INTER_AREA) if s < 1.0 else image
+        self.thumbnails[index] = np.clip(np.rint(small), 0, 255).astype(np.uint8)
+        while len(self.thumbnails) > self._thumbnail_limit:
+            self._thumbnail_stride *= 2
+            keep = sorted(self.thumbnails)[::2]
+            self.thumbnails = {k: self.thumbnails[k] for k in keep}
 
     def record(self, res: FrameResult) -> None:
         """Add ``res`` to the run (:meth:`results` with ``record=False``)."""
@@ -189,7 +221,7 @@ class Tracking:
         records as lost.
         """
         frames, first = self.seq.frames, self.seq.first
-        self._last_image = first.image
+        self._last_image, self._last_index = first.image, first.index
         yield first.index, first.timestamp, first.image
         for index in range(1, len(frames)):
             try:
@@ -201,10 +233,10 @@ class Tracking:
                                      "--skip-bad-frames to record bad frames as lost and go "
                                      "on") from None
                 log.warning("%s; recorded as lost (--skip-bad-frames)", exc)
-                self._last_image = None
+                self._last_image, self._last_index = None, index
                 yield index, float(frames.timestamps[index]), None
             else:
-                self._last_image = frame.image
+                self._last_image, self._last_index = frame.image, frame.index
                 yield frame.index, frame.timestamp, frame.image
 
 
