@@ -38,13 +38,14 @@ from monovo_cli.pipeline.preflight import (
     model_keyframe,
 )
 from monovo_cli.pipeline.products import write_terrain, write_trajectory_plot
+from monovo_cli.pipeline.report import THUMBNAIL_SIDE, THUMBNAILS, write_report
 from monovo_cli.pipeline.threads import one_blas_thread
 from monovo_cli.pipeline.tracking import Tracking, naming, open_sequence, read_mask, read_prior
 
 log = logging.getLogger(__name__)
 
 RESULT_FILES = ("motion.csv", "trajectory.csv", "trajectory.tum", "trajectory.png",
-                "terrain.ply", "heightmap.png", "heightmap.csv")
+                "terrain.ply", "heightmap.png", "heightmap.csv", "report.html")
 
 
 def prepare_out_dir(out_dir: Path, overwrite: bool) -> None:
@@ -123,7 +124,7 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                    groundtruth: Path | None = None, mask: Path | None = None,
                    prior: Path | None = None, covariance: Path | None = None,
                    topic: str | None = None, terrain_out: bool = False, smooth: bool = True,
-                   progress: Callable[[int, int], None] | None = None) -> TrackRun:
+                   report: bool = True, progress: Callable[[int, int], None] | None = None) -> TrackRun:
     """``monovo track``: estimate every frame's motion and write motion.csv, trajectory.csv
     and trajectory.tum (docs/guide.md "File formats").
 
@@ -142,6 +143,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     ``terrain_out`` (with an output directory): also terrain.ply, heightmap.png and
     heightmap.csv, what tracking learned of the ground (:func:`~monovo_cli.pipeline.products.write_terrain`).
     ``smooth`` False writes the trajectory as estimated, not re-scaled in hindsight.
+    ``report`` (with an output directory): also report.html, the run on one self-contained
+    page (:func:`~monovo_cli.pipeline.report.write_report`).
     ``progress(done, total)`` is called after every frame. Returns the run
     (:class:`~monovo_cli.core.run.TrackRun`).
     """
@@ -161,14 +164,15 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
         for name in RESULT_FILES:  # stale results of an earlier run must not survive
             (Path(out_dir) / name).unlink(missing_ok=True)
         _remove_stale_temporaries(Path(out_dir))
-        write_run_record(Path(out_dir), run_record(
+        record = run_record(
             "track", options, {"sequence": Path(seq), "params": cfg.path,
                                "topic": topic, "model": model, "mask": mask, "prior": prior,
                                "covariance": covariance, "groundtruth": groundtruth,
                                "skip_bad_frames": skip_bad_frames, "overwrite": overwrite,
                                "smooth": smooth},
             frames, cfg.path, {"model": model, "mask": mask, "prior": prior,
-                               "groundtruth": groundtruth}))
+                               "groundtruth": groundtruth})
+        write_run_record(Path(out_dir), record)
         motion = Path(out_dir) / "motion.csv"
         stream = DigestingStream(open(motion, "w", newline="", encoding="utf-8"), motion)
     else:
@@ -180,7 +184,9 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
 
     tracking = Tracking(opened, options, mask=usable, priors=priors, first_keyframe=first_key,
                         skip_bad_frames=skip_bad_frames, smooth=smooth,
-                        terrain=terrain_out and out_dir is not None, stopped=stopped)
+                        terrain=terrain_out and out_dir is not None, stopped=stopped,
+                        thumbnails=THUMBNAILS if report and out_dir is not None else 0,
+                        thumbnail_side=THUMBNAIL_SIDE)
 
     index: list[int] = []  # the frames done, in order, and their times
     times: list[float] = []
@@ -221,9 +227,14 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
             if cov_writer is not None:
                 cov_writer.close()
     if out_dir is not None:
-        write_trajectory_plot(Path(out_dir), cfg.plane, run, gt_poses)
+        path_image = write_trajectory_plot(Path(out_dir), cfg.plane, run, gt_poses)
+        heights = None
         if tracking.terrain is not None:
-            write_terrain(Path(out_dir), tracking.terrain, run.trajectory, tracking.drive)
+            heights = write_terrain(Path(out_dir), tracking.terrain, run.trajectory, tracking.drive)
+        if report:
+            write_report(Path(out_dir), run, cfg, record, title=Path(seq).resolve().name,
+                         trajectory_image=path_image, heightmap_image=heights,
+                         thumbnails=tracking.thumbnails, groundtruth=groundtruth)
     return run
 
 

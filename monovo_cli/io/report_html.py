@@ -1,0 +1,99 @@
+"""Self-contained HTML pages: report.html and batch's index.html.
+
+Everything a page shows is inside the file: images as ``data:image/png;base64,...`` URIs,
+styles in one ``<style>`` block, no script, no link to anything but relative paths given by
+the caller. The pieces here are text in, text out; :func:`write_page` writes a page
+atomically (:mod:`monovo_cli.io.atomic`).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from monovo_cli.errors import OutputError
+from monovo_cli.io.atomic import atomic_write_bytes
+
+PNG_COMPRESSION = 6  # zlib level: between OpenCV's fast default and the slow best
+
+STYLE = """
+body { font-family: sans-serif; margin: 1.5em auto; max-width: 1100px; color: #222;
+       padding: 0 1em; }
+h1 { font-size: 1.5em; } h2 { font-size: 1.2em; border-bottom: 1px solid #ccc;
+       padding-bottom: .2em; margin-top: 1.6em; }
+table { border-collapse: collapse; font-size: .9em; margin: .5em 0; }
+th, td { border: 1px solid #ddd; padding: .2em .6em; text-align: left; vertical-align: top; }
+th { background: #f3f3f3; } td.num { text-align: right; font-variant-numeric: tabular-nums; }
+img { max-width: 100%; height: auto; }
+figure { display: inline-block; margin: .3em; text-align: center; font-size: .8em; }
+tr.failed td { background: #fde8e8; } tr.lost td { background: #fff4e0; }
+.note { color: #666; font-size: .9em; }
+pre { background: #f7f7f7; padding: .6em; overflow-x: auto; font-size: .85em; }
+"""
+
+
+def esc(text: object) -> str:
+    """``text`` as HTML text or an attribute value (quotes escaped)."""
+    return html.escape(str(text), quote=True)
+
+
+def png_bytes(image: np.ndarray) -> bytes:
+    """``image`` (H, W[, 3]) uint8 (grey or BGR) as PNG bytes at :data:`PNG_COMPRESSION`."""
+    ok, buf = cv2.imencode(".png", np.asarray(image), [cv2.IMWRITE_PNG_COMPRESSION, PNG_COMPRESSION])
+    if not ok:
+        raise OutputError(f"cannot encode a {np.asarray(image).shape} image as PNG")
+    return buf.tobytes()
+
+
+def img_tag(image: np.ndarray | bytes, alt: str, *, width: int | None = None) -> str:
+    """An ``<img>`` holding ``image`` (an array for :func:`png_bytes`, or PNG bytes) as a
+    data URI; ``width`` px the displayed width (None: the image's own)."""
+    data = image if isinstance(image, bytes) else png_bytes(image)
+    uri = "data:image/png;base64," + base64.b64encode(data).decode("ascii")
+    size = f' width="{int(width)}"' if width else ""
+    return f'<img src="{uri}" alt="{esc(alt)}"{size}>'
+
+
+def table(header: Sequence[str], rows: Iterable[Sequence[object]], *,
+          numeric: Sequence[bool] | None = None,
+          row_classes: Iterable[str] | None = None) -> str:
+    """A ``<table>`` of ``rows`` under ``header``; cells are escaped unless they are
+    :class:`Markup`; ``numeric`` flags right-aligned columns; ``row_classes`` one CSS
+    class per row ("" for none)."""
+    numeric = list(numeric or [False] * len(header))
+    classes = iter(row_classes) if row_classes is not None else None
+    out = ["<table>", "<tr>" + "".join(f"<th>{esc(h)}</th>" for h in header) + "</tr>"]
+    for row in rows:
+        cls = next(classes) if classes is not None else ""
+        cells = "".join(
+            f'<td{" class=num" if numeric[i] else ""}>{c if isinstance(c, Markup) else esc(c)}</td>'
+            for i, c in enumerate(row))
+        out.append(f'<tr class="{esc(cls)}">{cells}</tr>' if cls else f"<tr>{cells}</tr>")
+    out.append("</table>")
+    return "\n".join(out)
+
+
+class Markup(str):
+    """HTML already built (a link, an image), put into a table as it is."""
+
+
+def link(href: str, text: str) -> Markup:
+    """``<a>`` to the relative path ``href``."""
+    return Markup(f'<a href="{esc(href)}">{esc(text)}</a>')
+
+
+def page(title: str, body: Sequence[str]) -> str:
+    """A whole HTML document: ``title`` and the ``body`` parts in order."""
+    return "\n".join(["<!DOCTYPE html>", '<html lang="en">', "<head>", '<meta charset="utf-8">',
+                      f"<title>{esc(title)}</title>", f"<style>{STYLE}</style>", "</head>",
+                      "<body>", *body, "</body>", "</html>", ""])
+
+
+def write_page(path: Path, text: str) -> None:
+    """Write the page ``text`` to ``path`` (UTF-8) atomically."""
+    atomic_write_bytes(Path(path), text.encode("utf-8"))

@@ -1,0 +1,198 @@
+"""report.html of a ``monovo track`` run and batch's index.html, from the run in memory.
+
+:func:`write_report` puts one run on one self-contained page (:mod:`monovo_cli.io.report_html`):
+the trajectory from above, the timeline of every frame (:mod:`monovo_cli.viz.timeline`) with
+the reasons of the frames not ``ok``, the height map when the terrain was kept, keyframe
+thumbnails with the ground region and the glued triangle (:mod:`monovo_cli.viz.thumbnails`),
+the errors against the ground truth when one was given (:func:`evaluation_section`) and
+run.yaml's options and inputs. :func:`write_index` links every sequence's report of a batch,
+the failed ones first.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from monovo_cli.core.run import TrackRun
+from monovo_cli.core.status import FrameStatus
+from monovo_cli.errors import MonovoError
+from monovo_cli.io.config import InitConfig
+from monovo_cli.io.report_html import Markup, esc, img_tag, link, page, table, write_page
+
+REPORT_FILE = "report.html"
+INDEX_FILE = "index.html"
+THUMBNAILS = 16          # keyframe thumbnails kept at most (Tracking's ``thumbnails``)
+THUMBNAIL_SIDE = 200     # px, their longer side
+
+
+def write_report(out_dir: Path, run: TrackRun, config: InitConfig, record: Mapping[str, Any], *,
+                 title: str, trajectory_image: np.ndarray,
+                 heightmap_image: np.ndarray | None = None,
+                 thumbnails: Mapping[int, np.ndarray] | None = None,
+                 groundtruth: Path | None = None) -> Path:
+    """Write ``out_dir/report.html`` of ``run`` atomically; returns its path.
+
+    ``config`` the run's init.yaml; ``record`` run.yaml's dict
+    (:func:`~monovo_cli.io.run_record.run_record`); ``title`` the sequence's name;
+    ``trajectory_image`` / ``heightmap_image`` BGR uint8 as written to trajectory.png /
+    heightmap.png (None: no height map); ``thumbnails`` frame index -> grey uint8 keyframe
+    image scaled down (:class:`~monovo_cli.pipeline.tracking.Tracking`'s ``thumbnails``);
+    ``groundtruth`` a TUM file the run is evaluated against.
+    """
+    from monovo_cli.viz.thumbnails import keyframe_thumbnails
+    from monovo_cli.viz.timeline import plot_timeline
+
+    body = [f"<h1>{esc(title)}</h1>", f"<p>{esc(run_summary(run))}</p>"]
+    body += ["<h2 id=trajectory>Trajectory from above</h2>",
+             img_tag(trajectory_image, "the trajectory seen from above", width=560)]
+    body += ["<h2 id=timeline>Timeline</h2>",
+             img_tag(plot_timeline(run.index, run.status, run.msd, run.points, run.std),
+                     "status, msd, points and reported std per frame"),
+             events_table(run)]
+    if heightmap_image is not None:
+        body += ["<h2 id=heightmap>Height map</h2>",
+                 img_tag(heightmap_image, "the height map of the driven strip", width=560)]
+    body.append("<h2 id=keyframes>Keyframes</h2>")
+    if thumbnails:
+        drawn = keyframe_thumbnails(thumbnails, config.camera, config.plane, config.region,
+                                    run.index, run.trajectory, run.status)
+        status = dict(zip((int(k) for k in run.index), run.status))
+        body.append(f'<p class="note">{len(run.keyframes)} keyframe(s), {len(drawn)} shown: the '
+                    "ground region (cyan) and the glued triangle as the poses carried it "
+                    "to the keyframe, before it is placed again there.</p>")
+        body += [f"<figure>{img_tag(img, f'keyframe {k}')}<figcaption>frame {k} "
+                 f"({esc(status.get(k, ''))})</figcaption></figure>" for k, img in drawn.items()]
+    else:
+        body.append('<p class="note">no keyframe images were kept</p>')
+    if groundtruth is not None:
+        body += ["<h2 id=evaluation>Against the ground truth</h2>",
+                 evaluation_section(run, Path(groundtruth))]
+    body += ["<h2 id=run>Options and inputs (run.yaml)</h2>", record_tables(record)]
+    path = Path(out_dir) / REPORT_FILE
+    write_page(path, page(f"monovo: {title}", body))
+    return path
+
+
+def run_summary(run: TrackRun) -> str:
+    """One line of the run's figures."""
+    return (f"{run.frames} frames in {run.seconds:.1f} s; {run.count(FrameStatus.OK)} ok, "
+            f"{run.reanchored} re-anchored, {run.reinit} re-initialised, {run.lost} lost; "
+            f"mean msd {run.mean_msd:.2f}; path length {run.path_length:.3f} m")
+
+
+def events_table(run: TrackRun) -> str:
+    """The frames that are not ``ok`` or ``reanchored``, consecutive ones of one status and
+    reason on one row."""
+    rows: list[list[str]] = []
+    last: tuple[str, str] | None = None
+    for k, st, why in zip(run.index[1:], run.status[1:], run.reason[1:]):
+        if st in (FrameStatus.OK, FrameStatus.REANCHORED):
+            last = None
+            continue
+        if last == (st, why) and rows:
+            rows[-1][0] = f"{rows[-1][0].split('-')[0]}-{int(k)}"
+        else:
+            rows.append([f"{int(k)}", str(st), why])
+        last = (st, why)
+    if not rows:
+        return '<p class="note">no frame was lost or re-initialised</p>'
+    return table(("frames", "status", "reason"), rows,
+                 row_classes=["lost" if r[1] == FrameStatus.LOST else "" for r in rows])
+
+
+def evaluation_section(run: TrackRun, groundtruth: Path) -> str:
+    """The run's trajectory against the TUM file ``groundtruth``
+    (:func:`~monovo_cli.evaluation.metrics.evaluate`, SE(3)-aligned as ``monovo eval
+    --align``) as a table of its figures; a note when it cannot be evaluated."""
+    from monovo_cli.evaluation.metrics import evaluate
+    from monovo_cli.io.formats import read_tum
+
+    try:
+        ts_gt, gt = read_tum(groundtruth)
+        ev = evaluate(run.timestamp, run.trajectory, ts_gt, gt, align="se3",
+                      names=("the run", str(groundtruth)))
+    except MonovoError as exc:
+        return f'<p class="note">not evaluated: {esc(exc)}</p>'
+    rows = [[name, _number(v)] for name, v in _flat(ev.as_dict())]
+    return (f'<p class="note">against {esc(groundtruth.name)}; relative errors per axis '
+            "(m, deg), as <code>monovo eval --align</code> gives them</p>"
+            + table(("measure", "value"), rows, numeric=(False, True)))
+
+
+def record_tables(record: Mapping[str, Any]) -> str:
+    """run.yaml's options and inputs as two tables of dotted names and values."""
+    out = []
+    for part in ("options", "inputs"):
+        rows = [[name, _number(v)] for name, v in _flat(record.get(part, {}))]
+        out.append(f"<h3>{part}</h3>" + table(("name", "value"), rows))
+    head = {k: v for k, v in record.items() if k not in ("options", "inputs")}
+    return table(("name", "value"), [[k, v] for k, v in head.items()]) + "\n".join(out)
+
+
+def _flat(value: Any, prefix: str = "") -> list[tuple[str, Any]]:
+    """(dotted name, leaf) of a nested mapping; lists of plain values stay whole."""
+    if isinstance(value, Mapping):
+        out: list[tuple[str, Any]] = []
+        for k, v in value.items():
+            out += _flat(v, f"{prefix}.{k}" if prefix else str(k))
+        return out
+    return [(prefix, value)]
+
+
+def _number(v: Any) -> str:
+    if isinstance(v, float):
+        return "n/a" if not math.isfinite(v) else f"{v:.6g}"
+    if isinstance(v, Path):
+        return str(v)
+    if isinstance(v, (list, tuple)):
+        return ", ".join(_number(x) for x in v)
+    return "-" if v is None else str(v)
+
+
+# ----------------------------------------------------------------------------- batch
+
+
+def outcome_rank(result: Mapping[str, Any]) -> tuple[int, float]:
+    """The order of a sequence in the index: failed, then not run, then by the share of
+    frames lost (most first)."""
+    status = result.get("status")
+    frames, lost = result.get("frames") or 0, result.get("lost") or 0
+    share = lost / (frames - 1) if frames > 1 else 0.0
+    return ({"failed": 0, "pending": 1}.get(str(status), 2), -share)
+
+
+def write_index(out_root: Path, results: Sequence[Mapping[str, Any]]) -> Path:
+    """Write ``out_root/index.html`` atomically: one row per sequence of ``results`` (batch's
+    result dicts, ``out_dir`` where its outputs are) with summary.csv's columns, sorted by
+    :func:`outcome_rank`, its name linked to its report.html (a relative link) when there is
+    one. Returns its path."""
+    from monovo_cli.pipeline.batch_summary import SUMMARY_COLUMNS, summary_rows
+
+    out_root = Path(out_root)
+    ordered = sorted(results, key=outcome_rank)
+    rows, classes = [], []
+    for res, row in zip(ordered, summary_rows(ordered)):
+        report = Path(str(res.get("out_dir", ""))) / REPORT_FILE
+        if res.get("out_dir") and report.is_file():
+            rel = Path(os.path.relpath(report, out_root)).as_posix()
+            row = [link(rel, row[0]), *row[1:]]
+        else:
+            row = [Markup(f"{esc(row[0])} <span class=note>(no report)</span>"), *row[1:]]
+        rows.append(row)
+        classes.append("failed" if res.get("status") == "failed"
+                       else "lost" if (res.get("lost") or 0) > 0 else "")
+    numeric = [c not in ("sequence", "status", "error") for c in SUMMARY_COLUMNS]
+    counts = {s: sum(r.get("status") == s for r in results) for s in
+              ("ok", "skipped", "failed", "pending")}
+    line = ", ".join(f"{n} {s}" for s, n in counts.items() if n)
+    body = [f"<h1>{esc(out_root.name)}: {len(results)} sequence(s)</h1>", f"<p>{esc(line)}</p>",
+            table(SUMMARY_COLUMNS, rows, numeric=numeric, row_classes=classes)]
+    path = out_root / INDEX_FILE
+    write_page(path, page(f"monovo batch: {out_root.name}", body))
+    return path

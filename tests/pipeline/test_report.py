@@ -1,0 +1,164 @@
+"""report.html of a track run and batch's index.html: self-contained, every section there."""
+
+from __future__ import annotations
+
+import base64
+import shutil
+from html.parser import HTMLParser
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from monovo_cli.core.options import TrackOptions
+from monovo_cli.pipeline.report import INDEX_FILE, REPORT_FILE, outcome_rank, write_index
+from monovo_cli.pipeline.track import RESULT_FILES, track_sequence
+from monovo_cli.synth.write import synthesize
+
+PNG = "data:image/png;base64,"
+
+
+class _Page(HTMLParser):
+    """Every tag's attributes, by tag, and the ids."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.tags: list[tuple[str, dict[str, str | None]]] = []
+
+    def handle_starttag(self, tag, attrs):
+        self.tags.append((tag, dict(attrs)))
+
+    def of(self, tag: str) -> list[dict[str, str | None]]:
+        return [a for t, a in self.tags if t == tag]
+
+
+def parse(path: Path) -> _Page:
+    p = _Page()
+    p.feed(path.read_text(encoding="utf-8"))
+    p.close()
+    return p
+
+
+def assert_self_contained(path: Path) -> _Page:
+    """Every image embedded as a valid PNG, no external URL, no script, no link element."""
+    text = path.read_text(encoding="utf-8")
+    page = parse(path)
+    imgs = page.of("img")
+    assert imgs or path.name == INDEX_FILE
+    for a in imgs:
+        src = a.get("src") or ""
+        assert src.startswith(PNG), src[:60]
+        data = base64.b64decode(src[len(PNG):], validate=True)
+        assert data[:8] == b"\x89PNG\r\n\x1a\n"
+        assert cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_UNCHANGED) is not None
+    assert not page.of("script") and not page.of("link") and not page.of("iframe")
+    for _, attrs in page.tags:
+        for name in ("src", "href", "srcset", "action", "data"):
+            v = attrs.get(name)
+            if v is not None and not v.startswith(PNG):
+                assert "//" not in v and ":" not in v, f"{name}={v!r}"
+    assert "http:" not in text.lower() and "https:" not in text.lower()
+    assert "url(" not in text.lower() and "@import" not in text.lower()
+    return page
+
+
+@pytest.fixture(scope="module")
+def broken_drive(tmp_path_factory) -> Path:
+    """14 frames: frame 5 blank, frames 6.. of another drive: lost, lost, re-initialised."""
+    root = tmp_path_factory.mktemp("report")
+    seq, other = root / "seq", root / "other"
+    synthesize(seq, preset="drive", frames=14, size=(128, 128), seed=4)
+    synthesize(other, preset="drive", frames=14, size=(128, 128), seed=9)
+    frames = sorted((seq / "frames").glob("*.png"))
+    assert len(frames) == 14
+    img = cv2.imread(str(frames[5]), cv2.IMREAD_UNCHANGED)
+    cv2.imwrite(str(frames[5]), np.full_like(img, 128))
+    for mine, theirs in zip(frames[6:], sorted((other / "frames").glob("*.png"))[6:]):
+        shutil.copy(theirs, mine)
+    return seq
+
+
+@pytest.fixture(scope="module")
+def broken_run(broken_drive, tmp_path_factory):
+    out = tmp_path_factory.mktemp("report_out") / "out"
+    run = track_sequence(broken_drive, None, out, TrackOptions(), terrain_out=True,
+                         groundtruth=broken_drive / "groundtruth.tum")
+    return run, out
+
+
+def test_report_is_self_contained_with_every_section(broken_run):
+    run, out = broken_run
+    assert run.lost == 2 and run.reinit == 1  # the drive does what the test needs
+    page = assert_self_contained(out / REPORT_FILE)
+    ids = {a.get("id") for _, a in page.tags}
+    assert {"trajectory", "timeline", "heightmap", "keyframes", "evaluation", "run"} <= ids
+    alts = [a.get("alt") or "" for a in page.of("img")]
+    assert any("trajectory" in a for a in alts) and any("height map" in a for a in alts)
+    assert any("per frame" in a for a in alts)
+    # a thumbnail of frame 0 and of the re-initialised frame
+    assert {"keyframe 0", "keyframe 7"} <= set(alts)
+    text = (out / REPORT_FILE).read_text()
+    # the lost and re-initialised frames with their reasons
+    for k in (5, 6, 7):
+        assert run.reason[k] and run.reason[k] in text
+    assert "<td>5-6</td>" not in text  # two reasons: two rows
+    assert "ate_rmse_m" in text and "final_drift_m" in text  # eval's figures
+    assert "track.reinit_after" in text and "<h3>inputs</h3>" in text  # run.yaml's record
+    assert "init_yaml.sha256" in text
+
+
+def test_report_without_terrain_or_truth(small_drive, tmp_path):
+    track_sequence(small_drive, None, tmp_path / "o", TrackOptions())
+    page = assert_self_contained(tmp_path / "o" / REPORT_FILE)
+    ids = {a.get("id") for _, a in page.tags}
+    assert {"trajectory", "timeline", "keyframes", "run"} <= ids
+    assert not {"heightmap", "evaluation"} & ids
+    assert "no frame was lost or re-initialised" in (tmp_path / "o" / REPORT_FILE).read_text()
+
+
+def test_report_is_a_result_file_and_can_be_left_out(small_drive, tmp_path):
+    assert REPORT_FILE in RESULT_FILES  # removed before a rerun, refused without --overwrite
+    out = tmp_path / "o"
+    track_sequence(small_drive, None, out, TrackOptions())
+    assert (out / REPORT_FILE).is_file()
+    track_sequence(small_drive, None, out, TrackOptions(), overwrite=True, report=False)
+    assert not (out / REPORT_FILE).exists()  # the stale one is gone
+
+
+def test_an_unmatched_groundtruth_is_a_note(small_drive, tmp_path):
+    from monovo_cli.pipeline.report import evaluation_section
+    from monovo_cli.pipeline.tracking import track_frames
+
+    run = track_frames(small_drive)
+    gt = tmp_path / "gt.tum"
+    gt.write_text("1000 0 0 0 0 0 0 1\n1001 0 0 0 0 0 0 1\n")
+    assert "not evaluated" in evaluation_section(run, gt)
+
+
+def test_index_orders_by_outcome_and_links_reports(tmp_path):
+    root = tmp_path / "out"
+    for name in ("ok", "lossy", "bad"):
+        (root / name).mkdir(parents=True)
+        (root / name / REPORT_FILE).write_text("<!DOCTYPE html>")
+    results = [
+        {"sequence": "ok", "out_dir": str(root / "ok"), "status": "ok", "frames": 10, "lost": 0},
+        {"sequence": "lossy", "out_dir": str(root / "lossy"), "status": "ok", "frames": 10,
+         "lost": 3},
+        {"sequence": "gone", "out_dir": str(root / "gone"), "status": "failed", "frames": None,
+         "lost": None, "error": "bad init.yaml"},
+        {"sequence": "bad", "out_dir": str(root / "bad"), "status": "failed", "frames": 10,
+         "lost": 8, "error": "8 of 9 frames lost"},
+    ]
+    assert [r["sequence"] for r in sorted(results, key=outcome_rank)] == \
+        ["bad", "gone", "lossy", "ok"]  # failed ones first, the most lost first
+    path = write_index(root, results)
+    page = assert_self_contained(path)
+    hrefs = [a["href"] for a in page.of("a")]
+    assert hrefs == ["bad/report.html", "lossy/report.html", "ok/report.html"]
+    assert all((root / h).is_file() for h in hrefs)
+    text = path.read_text()
+    assert text.index("bad/report.html") < text.index("gone") < text.index("lossy/") \
+        < text.index("ok/report.html")
+    assert "bad init.yaml" in text and "(no report)" in text
+
