@@ -303,7 +303,9 @@ def run_batch(root: str | Path, out_root: str | Path, options: JobOptions | None
     results is an OutputError before anything runs. A sequence that fails is recorded and
     the others go on. ``out_root/summary.csv`` (:func:`write_summary`) is rewritten
     atomically at least every ``summary_every_s`` seconds while results come in, at the
-    end, and when the batch is interrupted (unfinished sequences ``pending``).
+    end, and when the batch is interrupted (unfinished sequences ``pending``); at the end (or
+    the interruption) ``out_root/index.html`` too, every sequence's report.html linked, the
+    failed ones first (:func:`~monovo_cli.pipeline.report.write_index`).
     ``progress(done, total)`` is called as sequences finish (skipped ones count as done).
 
     Raises MonovoError for a bad root, pattern, output root or executor (Dask missing or
@@ -384,5 +386,8 @@ def run_batch(root: str | Path, out_root: str | Path, options: JobOptions | None
             _run_pool(jobs, workers, task, opts, True, on_result, log_level)
     finally:
         write_summary(summary_path, results)
+        from monovo_cli.pipeline.report import write_index
+
+        write_index(out_root, results)
     return BatchSummary(results, time.perf_counter() - t0, summary_path, executor,
                         None if scheduler else workers)

@@ -162,3 +162,23 @@ def test_index_orders_by_outcome_and_links_reports(tmp_path):
         < text.index("ok/report.html")
     assert "bad init.yaml" in text and "(no report)" in text
 
+
+def test_batch_index_links_every_report(broken_drive, small_drive, tmp_path):
+    from monovo_cli.pipeline.batch import run_batch
+
+    root = tmp_path / "archive"
+    shutil.copytree(broken_drive, root / "lossy")
+    shutil.copytree(small_drive, root / "fine")
+    shutil.copytree(small_drive, root / "broken")
+    (root / "broken" / "init.yaml").write_text("camera: [\n")
+    out = tmp_path / "out"
+    summary = run_batch(root, out, workers=1)
+    assert [r["status"] for r in summary.results] == ["failed", "ok", "ok"]
+    page = assert_self_contained(out / INDEX_FILE)
+    hrefs = [a["href"] for a in page.of("a")]
+    assert hrefs == ["lossy/report.html", "fine/report.html"]  # failed first, then by losses
+    for h in hrefs:
+        assert not Path(h).is_absolute() and (out / h).is_file()
+        assert_self_contained(out / h)
+    text = (out / INDEX_FILE).read_text()
+    assert text.index("broken") < text.index("lossy/") and "(no report)" in text
