@@ -182,10 +182,13 @@ def open_sink(out: str | Path, *, fps: float = 10.0, overwrite: bool = False) ->
         raise OutputError(f"{path.parent}: cannot write here ({exc.strerror})") from None
 
 
-def write_png_atomic(path: Path, image: np.ndarray) -> None:
-    """Write ``image`` (H, W[, 3]) uint8 as a PNG through a temporary file + rename."""
+def write_png_atomic(path: Path, image: np.ndarray) -> bytes:
+    """Write ``image`` (H, W[, 3]) uint8 as a PNG through a temporary file + rename; returns
+    the PNG's bytes."""
     path = Path(path)
     ok, buf = cv2.imencode(".png", image)
     if not ok:
         raise OutputError(f"{path}: cannot encode PNG")
-    atomic_write_bytes(path, buf.tobytes())
+    data = buf.tobytes()
+    atomic_write_bytes(path, data)
+    return data

@@ -14,11 +14,11 @@ from monovo_cli.mapping.terrain_map import TerrainMap
 
 
 def write_terrain(out_dir: Path, terrain: TerrainMap, world_from_cam: np.ndarray,
-                  drive: SmoothedDrive | None) -> np.ndarray:
+                  drive: SmoothedDrive | None) -> bytes:
     """``terrain.ply``, ``heightmap.csv`` and ``heightmap.png`` (the camera path
     ``world_from_cam`` (N, 4, 4) drawn over the heights) of ``terrain`` into ``out_dir``
     (:mod:`monovo_cli.io.terrain`), its keyframes placed as ``drive`` smoothed them (None: as
-    tracked). Returns heightmap.png's image (BGR uint8)."""
+    tracked). Returns heightmap.png's bytes."""
     from monovo_cli.io.terrain import write_heightmap_csv, write_ply
     from monovo_cli.io.video import write_png_atomic
     from monovo_cli.viz.heightmap import plot_height_map
@@ -30,16 +30,15 @@ def write_terrain(out_dir: Path, terrain: TerrainMap, world_from_cam: np.ndarray
     write_heightmap_csv(out_dir / "heightmap.csv", grid, G)
     path = world_from_cam[:, :3, 3] @ G[:3, :3].T + G[:3, 3]
     title = f"{out_dir.name}: heights above frame 0's ground, {len(X)} points"
-    image = plot_height_map(grid, path=path[:, :2], title=title)
-    write_png_atomic(out_dir / "heightmap.png", image)
-    return image
+    return write_png_atomic(out_dir / "heightmap.png",
+                            plot_height_map(grid, path=path[:, :2], title=title))
 
 
 def write_trajectory_plot(out_dir: Path, plane: Plane, run: TrackRun,
-                          groundtruth: np.ndarray | None) -> np.ndarray:
+                          groundtruth: np.ndarray | None) -> bytes:
     """``trajectory.png`` of ``run``'s trajectory, coloured by status, in ``out_dir``
     (atomically); ``groundtruth`` (M, 4, 4) is drawn from its first pose, put at camera 0.
-    Returns the image (BGR uint8)."""
+    Returns the PNG's bytes."""
     from monovo_cli.geometry.lie import se3_inv
     from monovo_cli.io.video import write_png_atomic
     from monovo_cli.viz.plots import plot_trajectory
@@ -48,7 +47,6 @@ def write_trajectory_plot(out_dir: Path, plane: Plane, run: TrackRun,
     if groundtruth is not None:
         gt = se3_inv(groundtruth[0]) @ groundtruth
     title = f"{out_dir.name}: {run.frames} frames, path {run.path_length:.2f} m"
-    image = plot_trajectory(run.trajectory, plane, statuses=list(run.status), groundtruth=gt,
-                            title=title)
-    write_png_atomic(out_dir / "trajectory.png", image)
-    return image
+    return write_png_atomic(out_dir / "trajectory.png",
+                            plot_trajectory(run.trajectory, plane, statuses=list(run.status),
+                                            groundtruth=gt, title=title))

@@ -32,16 +32,16 @@ THUMBNAIL_SIDE = 200     # px, their longer side
 
 
 def write_report(out_dir: Path, run: TrackRun, config: InitConfig, record: Mapping[str, Any], *,
-                 title: str, trajectory_image: np.ndarray,
-                 heightmap_image: np.ndarray | None = None,
+                 title: str, trajectory_image: np.ndarray | bytes,
+                 heightmap_image: np.ndarray | bytes | None = None,
                  thumbnails: Mapping[int, np.ndarray] | None = None,
                  groundtruth: Path | None = None) -> Path:
     """Write ``out_dir/report.html`` of ``run`` atomically; returns its path.
 
     ``config`` the run's init.yaml; ``record`` run.yaml's dict
     (:func:`~monovo_cli.io.run_record.run_record`); ``title`` the sequence's name;
-    ``trajectory_image`` / ``heightmap_image`` BGR uint8 as written to trajectory.png /
-    heightmap.png (None: no height map); ``thumbnails`` frame index -> grey uint8 keyframe
+    ``trajectory_image`` / ``heightmap_image`` the figures of trajectory.png / heightmap.png,
+    BGR uint8 or the PNG files' bytes (None: no height map); ``thumbnails`` frame index -> grey uint8 keyframe
     image scaled down (:class:`~monovo_cli.pipeline.tracking.Tracking`'s ``thumbnails``);
     ``groundtruth`` a TUM file the run is evaluated against.
     """
