@@ -30,6 +30,8 @@ table { border-collapse: collapse; font-size: .9em; margin: .5em 0; }
 th, td { border: 1px solid #ddd; padding: .2em .6em; text-align: left; vertical-align: top; }
 th { background: #f3f3f3; } td.num { text-align: right; font-variant-numeric: tabular-nums; }
 img { max-width: 100%; height: auto; }
+.pair { display: flex; flex-wrap: wrap; column-gap: 1.5em; }
+.pair section { flex: 1 1 460px; }
 figure { display: inline-block; margin: .3em; text-align: center; font-size: .8em; }
 tr.failed td { background: #fde8e8; } tr.lost td { background: #fff4e0; }
 .note { color: #666; font-size: .9em; }

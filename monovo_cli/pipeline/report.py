@@ -49,16 +49,19 @@ def write_report(out_dir: Path, run: TrackRun, config: InitConfig, record: Mappi
     from monovo_cli.viz.timeline import plot_timeline
 
     body = [f"<h1>{esc(title)}</h1>", f"<p>{esc(run_summary(run))}</p>"]
-    body += ["<h2 id=trajectory>Trajectory from above</h2>",
-             img_tag(trajectory_image, "the trajectory seen from above", width=560)]
-    body += ["<h2 id=timeline>Timeline</h2>",
+    figures = ["<section id=trajectory><h2>Trajectory from above</h2>",
+               img_tag(trajectory_image, "the trajectory seen from above", width=520),
+               "</section>"]
+    if heightmap_image is not None:
+        figures += ["<section id=heightmap><h2>Height map</h2>",
+                    img_tag(heightmap_image, "the height map of the driven strip", width=520),
+                    "</section>"]
+    body += ['<div class="pair">', *figures, "</div>"]
+    body += ["<section id=timeline><h2>Timeline</h2>",
              img_tag(plot_timeline(run.index, run.status, run.msd, run.points, run.std),
                      "status, msd, points and reported std per frame"),
-             events_table(run)]
-    if heightmap_image is not None:
-        body += ["<h2 id=heightmap>Height map</h2>",
-                 img_tag(heightmap_image, "the height map of the driven strip", width=560)]
-    body.append("<h2 id=keyframes>Keyframes</h2>")
+             events_table(run), "</section>"]
+    body.append("<section id=keyframes><h2>Keyframes</h2>")
     if thumbnails:
         drawn = keyframe_thumbnails(thumbnails, config.camera, config.plane, config.region,
                                     run.index, run.trajectory, run.status)
@@ -70,10 +73,12 @@ def write_report(out_dir: Path, run: TrackRun, config: InitConfig, record: Mappi
                  f"({esc(status.get(k, ''))})</figcaption></figure>" for k, img in drawn.items()]
     else:
         body.append('<p class="note">no keyframe images were kept</p>')
+    body.append("</section>")
     if groundtruth is not None:
-        body += ["<h2 id=evaluation>Against the ground truth</h2>",
-                 evaluation_section(run, Path(groundtruth))]
-    body += ["<h2 id=run>Options and inputs (run.yaml)</h2>", record_tables(record)]
+        body += ["<section id=evaluation><h2>Against the ground truth</h2>",
+                 evaluation_section(run, Path(groundtruth)), "</section>"]
+    body += ["<section id=run><h2>Options and inputs (run.yaml)</h2>", record_tables(record),
+             "</section>"]
     path = Path(out_dir) / REPORT_FILE
     write_page(path, page(f"monovo: {title}", body))
     return path

@@ -30,7 +30,7 @@ TEXT = (40, 40, 40)
 
 
 def _panel_ticks(lo: float, hi: float) -> list[float]:
-    step = nice_step(hi - lo, target=3)
+    step = nice_step(hi - lo, target=4)
     return [i * step for i in range(math.ceil(lo / step), math.floor(hi / step) + 1)]
 
 
@@ -104,7 +104,7 @@ def plot_timeline(index: np.ndarray, status: Sequence[str], msd: np.ndarray,
         for t in _panel_ticks(lo, hi):
             yy = int(round(p1 - (t - lo) / (hi - lo) * (p1 - p0)))
             cv2.line(img, (x0 + 1, yy), (x1 - 1, yy), GRID, 1)
-            lab = label(t, nice_step(hi - lo, target=3))
+            lab = label(t, nice_step(hi - lo, target=4))
             (tw, th), _ = cv2.getTextSize(lab, FONT, ts, 1)
             cv2.putText(img, lab, (x0 - tw - 6, yy + th // 2), FONT, ts, AXIS, 1, cv2.LINE_AA)
         cv2.putText(img, name, (x0 + 4, p0 - 5), FONT, ts, TEXT, 1, cv2.LINE_AA)
