@@ -7,7 +7,10 @@ track --groundtruth``, ``monovo overlay --points``, into a temporary directory) 
 
 * ``docs/img/overlay.png`` -- the glued triangle in the first frame and in frame
   ``--frame``, side by side like the paper's Figs. 10.4-10.7 (a) and (b);
-* ``docs/img/trajectory.png`` -- the ``trajectory.png`` that ``monovo track`` wrote.
+* ``docs/img/trajectory.png`` -- the ``trajectory.png`` that ``monovo track`` wrote;
+* ``docs/img/report.png`` -- the top of the ``report.html`` it wrote (with ``--terrain-out``),
+  as headless Chromium shows it at 1100 px wide, scaled to 800 px; skipped with a note when
+  no ``chromium`` is on the PATH (Debian: ``apt-get install chromium``).
 """
 
 from __future__ import annotations
@@ -41,7 +44,8 @@ def main() -> None:
     IMG.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "navcam_drive"  # the plot title names the output directory
-        monovo("track", str(SEQ), "-o", str(out), "--groundtruth", str(SEQ / "groundtruth.tum"))
+        monovo("track", str(SEQ), "-o", str(out), "--groundtruth", str(SEQ / "groundtruth.tum"),
+               "--terrain-out")
         frames = Path(tmp) / "overlay"
         monovo("overlay", str(SEQ), "-t", str(out / "trajectory.csv"), "-o", str(frames) + "/",
                "--points")
@@ -51,7 +55,28 @@ def main() -> None:
         pair = np.concatenate([first, gap, later], axis=1)
         cv2.imwrite(str(IMG / "overlay.png"), pair)
         shutil.copyfile(out / "trajectory.png", IMG / "trajectory.png")
-    print(f"wrote {IMG / 'overlay.png'} and {IMG / 'trajectory.png'}")
+        print(f"wrote {IMG / 'overlay.png'} and {IMG / 'trajectory.png'}")
+        report_screenshot(out / "report.html", Path(tmp) / "shot.png")
+
+
+def report_screenshot(report: Path, shot: Path, *, width: int = 1100, height: int = 1720,
+                      scaled: int = 800, keep: int = 1180) -> None:
+    """docs/img/report.png: ``report`` in headless Chromium, ``width`` x ``height`` px,
+    scaled to ``scaled`` px wide and its top ``keep`` px kept."""
+    browser = next((b for b in ("chromium", "chromium-browser", "google-chrome")
+                    if shutil.which(b)), None)
+    if browser is None:
+        print("no chromium on the PATH: docs/img/report.png left as it is")
+        return
+    subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu",
+                    "--disable-background-networking", "--hide-scrollbars",
+                    f"--screenshot={shot}", f"--window-size={width},{height}",
+                    report.as_uri()], check=True, capture_output=True)
+    img = cv2.imread(str(shot))
+    img = cv2.resize(img, (scaled, round(img.shape[0] * scaled / img.shape[1])),
+                     interpolation=cv2.INTER_AREA)[:keep]
+    cv2.imwrite(str(IMG / "report.png"), img, [cv2.IMWRITE_PNG_COMPRESSION, 9])
+    print(f"wrote {IMG / 'report.png'}")
 
 
 if __name__ == "__main__":
