@@ -27,7 +27,8 @@ from monovo_cli.cli.options import (
               help="A model.npz from 'monovo init' to start from.")
 @overwrite_option("Replace results already in the output directory.")
 @click.option("--groundtruth", type=click.Path(path_type=Path), default=None, metavar="GT.tum",
-              help="A TUM ground truth to draw beside the estimate in trajectory.png.")
+              help="A TUM ground truth to draw beside the estimate in trajectory.png and to "
+                   "evaluate the run against in report.html.")
 @skip_bad_frames_option("stop with an error, keeping the rows done")
 @click.option("--terrain-out", is_flag=True,
               help="Also write what tracking learned of the ground (with -o DIR): terrain.ply "
@@ -41,8 +42,9 @@ def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, ski
           terrain_out, mask, prior, covariance, smooth, options):
     """Estimate the motion of every frame of SEQ; write motion.csv and the trajectory.
 
-    With -o DIR also trajectory.png, the path seen from above on the ground plane, and with
-    --terrain-out the terrain products.
+    With -o DIR also trajectory.png, the path seen from above on the ground plane,
+    report.html, the run on one page that opens offline, and with --terrain-out the terrain
+    products.
     """
     from monovo_cli.pipeline.track import track_sequence
 
