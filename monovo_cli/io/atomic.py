@@ -82,6 +82,11 @@ class DigestingStream:
     def flush(self) -> None:
         self._stream.flush()
 
+    def sync(self) -> None:
+        """Flush and fsync: what was written is on the disk, not only in the OS's cache."""
+        self._stream.flush()
+        os.fsync(self._stream.fileno())
+
     def close(self) -> None:
         if not self._stream.closed:
             self._stream.close()

@@ -32,7 +32,7 @@ class Checkpoint:
     ``fingerprint`` a plain dict of the inputs and options (compared, never interpreted);
     ``state`` whatever the tracking run needs to continue; ``motion_bytes`` and
     ``covariance_bytes`` the lengths (bytes) of motion.csv and of the covariance CSV (None:
-    none written) after that frame's row.
+    none written) after that frame's row; ``seconds`` the run's wall-clock time so far.
     """
 
     next_frame: int
@@ -40,6 +40,7 @@ class Checkpoint:
     state: Any
     motion_bytes: int
     covariance_bytes: int | None = None
+    seconds: float = 0.0
 
 
 def checkpoint_path(out_dir: Path) -> Path:

@@ -69,8 +69,10 @@ def prepare_out_dir(out_dir: Path, overwrite: bool) -> None:
     if out_dir.is_dir():
         existing = existing_results(out_dir, RESULT_FILES)
         if existing and not overwrite:
-            raise OutputError(f"{out_dir}: already holds results ({', '.join(existing)}); "
-                              "use --overwrite or another -o")
+            resumable = "; its run was interrupted: use --resume to continue it, or" if \
+                (out_dir / CHECKPOINT_FILE).is_file() else ";"
+            raise OutputError(f"{out_dir}: already holds results ({', '.join(existing)})"
+                              f"{resumable} use --overwrite or another -o")
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -232,13 +234,17 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
         atomic_write_text(Path(out_dir) / "trajectory.tum", tum_text(times, poses))
 
     def write_checkpoint_now() -> None:
+        stream.sync()  # the rows the checkpoint counts are on the disk before it
+        if cov_stream is not None:
+            cov_stream.sync()
         write_checkpoint(Path(out_dir), Checkpoint(
             tracking.done, fingerprint, tracking.state(), stream.size,
-            cov_stream.size if cov_stream is not None else None))
+            cov_stream.size if cov_stream is not None else None,
+            time.perf_counter() - t0))
 
     run: TrackRun | None = None
     cov_writer = cov_stream = None
-    t0 = time.perf_counter()
+    t0 = time.perf_counter() - (saved.seconds if saved is not None else 0.0)
     try:
         writer = MotionWriter(stream, with_std=True, with_reason=True, header=saved is None)
         if covariance and saved is not None:

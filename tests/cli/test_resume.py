@@ -122,7 +122,7 @@ def test_resume_through_lost_frames_and_the_recovery(seq, tmp_path):
     _run(_track(noisy, clean))
     statuses = [ln.split(",")[10] for ln in (clean / "motion.csv").read_text().splitlines()[1:]]
     assert statuses[24:30] == ["lost"] * 6 and statuses[30] != "lost", statuses
-    killed_at = _kill_and_resume(noisy, clean, tmp_path, 11, 2, RESULTS, rows=(24, 31))
+    killed_at = _kill_and_resume(noisy, clean, tmp_path, 6, 2, RESULTS, rows=(24, 31))
     assert all(checkpoint for _, checkpoint in killed_at), killed_at
 
 
@@ -162,6 +162,8 @@ def test_resume_with_other_options_is_refused(seq, tmp_path, args, words):
     out = tmp_path / "out"
     _interrupted(seq, out)
     motion = (out / "motion.csv").read_bytes()
+    r = _invoke(str(seq), "-o", str(out), "--covariance", str(out / "covariance.csv"), *args)
+    assert r.exit_code == 2 and "its run was interrupted: use --resume to continue it" in r.output
     r = _invoke(str(seq), "-o", str(out), "--covariance", str(out / "covariance.csv"),
                 "--resume", *args)
     assert r.exit_code == 2
