@@ -108,7 +108,9 @@ class Tracking:
     first, and records it; :meth:`result` then gives the :class:`TrackRun`, its trajectory
     smoothed in hindsight once (``smooth``). A caller that must commit a frame's outputs
     together with its record (``monovo track`` holds signals over both) iterates
-    :meth:`results` with ``record=False`` and calls :meth:`record` itself.
+    :meth:`results` with ``record=False`` and calls :meth:`record` itself. :meth:`state`
+    between two frames, given to :meth:`restore` of another Tracking of the same sequence
+    and settings, continues the run exactly (``monovo track --resume``).
 
     ``options`` the tracking options; ``mask`` (H, W) bool, the pixels that may be used;
     ``priors`` frame index -> prior motion T_{k-1}_k (4x4) replacing the constant-velocity
