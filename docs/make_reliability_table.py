@@ -101,22 +101,43 @@ stderr. Frame 0 cannot be skipped: it carries the ground model.
   while a frame is being committed (its motion row, its trajectory entry, a checkpoint),
   so an interruption never separates a row from its pose.
 * **kill -9.** Nothing can run after SIGKILL, so: `motion.csv` only ever gets whole rows
-  (one write per row, flushed); `trajectory.csv` / `.tum` are checkpointed every 100
-  frames and are only ever written to a temporary name (`.trajectory.csv.*.tmp`) and
-  renamed, so a file under a final name is never half-written. The next run into the
-  same directory removes such temporaries.
+  (one write per row, flushed); `trajectory.csv` / `.tum` and the run's checkpoint
+  (`.track-checkpoint.pkl`) are written every `--checkpoint-every` frames (default 100)
+  and only ever to a temporary name (`.trajectory.csv.*.tmp`) and renamed, so a file
+  under a final name is never half-written. The next run into the same directory
+  removes such temporaries.
 * **Restarting.** A directory holding results is refused without `--overwrite`
   (nothing is clobbered by accident); `--overwrite` starts afresh and, the run being
-  deterministic, produces byte for byte the outputs of an uninterrupted run. There is no
-  `--resume`: re-tracking from frame 0 is cheap and is the only way to reproduce the
-  same keyframes.
+  deterministic, produces byte for byte the outputs of an uninterrupted run.
+* **Resuming.** `--resume` continues the run from its last checkpoint instead of frame 0
+  (docs/guide.md, "monovo track"): the checkpoint holds the tracker's whole state between
+  two frames, every frame's result and keyframe so far, the terrain map, and the byte
+  lengths of `motion.csv` and the covariance file when it was taken. The CSVs are cut back
+  to those lengths (the rows written after the checkpoint are tracked again) and the run
+  goes on, so its outputs are byte for byte an uninterrupted run's. This holds because
+  the state is all in the objects saved: numpy arrays round-trip exactly through a pickle,
+  the tracker keeps no module-level cache, OpenCV's RANSAC is seeded before every call
+  (`core/recovery/features.py`) and BLAS runs on one thread per frame
+  (`pipeline/threads.py`). The checkpoint is written in the same signal-held commit as
+  the frame's rows, after them, so it never counts a row that is not on disk; it is
+  checked against the inputs' and options' fingerprint (as in `run.yaml`) and the
+  monovo version, and a mismatch is refused in one line (exit 2) before anything is
+  touched. `motion.csv` and the covariance file are fsynced before each checkpoint is
+  written (and the checkpoint itself before its rename), so after a power loss too they
+  hold at least the bytes their checkpoint counts; a `motion.csv` shorter than that is
+  refused, and `--overwrite` starts afresh.
 
 tests/cli/test_signals.py sends SIGINT, SIGTERM and SIGKILL to real `monovo track`
 subprocesses once `motion.csv` has rows, and compares every file left on disk with an
 uninterrupted run (prefixes for the rows, exactly the frames done for the trajectory);
 the SIGKILL runs are killed at a random frame (before and after the 100-frame checkpoint)
 and restarted with `--overwrite`, and one run checkpoints after every frame so the kill
-lands among the renames.
+lands among the renames. tests/cli/test_resume.py kills `monovo track --checkpoint-every 5`
+with SIGKILL after a random number of rows at five points of a 60-frame drive (before the
+first checkpoint and between later ones), resumes each in a fresh
+process and compares `motion.csv`, the covariance file, `trajectory.csv` and
+`trajectory.tum` byte for byte with a clean run's; likewise with `--terrain-out`
+(`terrain.ply`, `heightmap.csv`) and through a run of lost frames and the recovery after it.
 
 ## Determinism
 

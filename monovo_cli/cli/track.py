@@ -9,7 +9,9 @@ import click
 from monovo_cli.cli.group import common, progress_bar
 from monovo_cli.cli.options import (
     LOOP,
+    LibraryDefault,
     given,
+    keyword_default,
     output_option,
     overwrite_option,
     sequence_inputs,
@@ -34,12 +36,21 @@ from monovo_cli.cli.options import (
               help="Also write what tracking learned of the ground (with -o DIR): terrain.ply "
                    "(the keyframes' points with intensity, world frame) and the driven strip's "
                    "heights above frame 0's ground, heightmap.png and heightmap.csv.")
+@click.option("--checkpoint-every", type=click.IntRange(min=0), metavar="N", cls=LibraryDefault,
+              default_text=keyword_default("monovo_cli.pipeline.track", "track_sequence",
+                                           "checkpoint_every"),
+              help="Every N frames write the trajectory files and the state to continue from "
+                   "with --resume (with -o DIR); 0: only at the end, no checkpoint.")
+@click.option("--resume", is_flag=True,
+              help="Continue the run interrupted in -o DIR from its last checkpoint, with the "
+                   "same inputs and options; the outputs are those of an uninterrupted run. "
+                   "Without a checkpoint, start from frame 0; a finished run is left as it is.")
 @side_inputs()
 @smooth_option
 @track_options(LOOP)
 @common
 def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, skip_bad_frames,
-          terrain_out, mask, prior, covariance, smooth, options):
+          terrain_out, checkpoint_every, resume, mask, prior, covariance, smooth, options):
     """Estimate the motion of every frame of SEQ; write motion.csv and the trajectory.
 
     With -o DIR also trajectory.png, the path seen from above on the ground plane,
@@ -53,12 +64,24 @@ def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, ski
         from monovo_cli.errors import InputError
 
         raise InputError("--terrain-out writes files: give an output directory (-o DIR), not -o -")
+    if resume and (to_stdout or overwrite):
+        from monovo_cli.errors import InputError
+
+        raise InputError("--resume continues the run in an output directory: give -o DIR, "
+                         "not -o -" if to_stdout else
+                         "--resume continues the run in -o DIR, --overwrite starts it afresh: "
+                         "give one of them")
     with progress_bar(verbosity.quiet, "frame") as bar:
         s = track_sequence(seq, params, None if to_stdout else Path(out), options,
                            groundtruth=groundtruth, mask=mask, prior=prior, covariance=covariance,
                            model=model, overwrite=overwrite, skip_bad_frames=skip_bad_frames,
                            topic=topic, terrain_out=terrain_out, progress=bar,
-                           **given(smooth=smooth))
+                           resume=resume,
+                           **given(smooth=smooth, checkpoint_every=checkpoint_every))
+    if s is None:
+        if not verbosity.quiet:
+            click.echo(f"nothing to resume: the run in {out} is finished")
+        return
     if not verbosity.quiet:
         click.echo(f"tracked {s.frames} frames in {s.seconds:.1f} s ({s.fps:.1f} frames/s): "
                    f"mean msd {s.mean_msd:.2f}, {s.reanchored} re-anchored, {s.reinit} re-initialised, "

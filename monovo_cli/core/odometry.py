@@ -25,7 +25,6 @@ plane.motion_covariance), and splitting the loop itself would pass that state ar
 
 from __future__ import annotations
 
-import itertools
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, replace
@@ -104,7 +103,8 @@ class Odometry:
     ``first_keyframe`` a ground model built earlier (``monovo init``), else built from frame
     0; ``sigma_distance`` (m), ``sigma_deg``: the mounting prior's width (init.yaml's ground
     section; None: the defaults of :func:`~monovo_cli.core.plane.belief.default_sigmas`).
-    Call :meth:`start` with frame 0, then :meth:`step` (or :meth:`skip`) per frame.
+    Call :meth:`start` with frame 0, then :meth:`step` (or :meth:`skip`) per frame, or
+    :meth:`advance` with every frame.
     """
 
     def __init__(self, camera: PinholeCamera, plane: Plane, region: tuple[int, int, int, int],
@@ -135,6 +135,8 @@ class Odometry:
                                   region=region)  # the feature hypothesis
         self._key_msd: float | None = None  # msd of the first frame fitted to the keyframe
         self._lost_run = 0  # frames lost in a row
+        self._started = False
+        self._announced: Keyframe | None = None  # the keyframe :meth:`advance` last reported
 
     @property
     def keyframe(self) -> Keyframe | None:
@@ -156,6 +158,28 @@ class Odometry:
         n = len(self._key.levels[0].points)
         return FrameResult(index, timestamp, np.eye(4), np.eye(4), 0.0, 0, n, FrameStatus.OK,
                            np.zeros(6), np.zeros((6, 6)), keyframe=self._key.index)
+
+    def advance(self, index: int, timestamp: float, image: np.ndarray | None,
+                prior_motion: np.ndarray | None = None) -> tuple[FrameResult, list[Keyframe]]:
+        """The next frame of the sequence: :meth:`start` for the first, :meth:`skip` when
+        ``image`` is None, else :meth:`step` (with ``prior_motion``). Returns its result and
+        the keyframes it anchored or rebuilt in place, the rebuilt ones first.
+
+        The whole state lives in this object, so a copy of it (a pickle) taken between two
+        frames continues the sequence exactly as this one would.
+        """
+        if not self._started:
+            res = self.start(index, timestamp, image)
+            self._started = True
+        elif image is None:
+            res = self.skip(index, timestamp)
+        else:
+            res = self.step(index, timestamp, image, prior_motion)
+        keys = list(self.rebuilt_keyframes)  # (rebuilt in place: the points at their terrain grid)
+        if self._key is not self._announced:
+            keys.append(self._key)
+            self._announced = self._key
+        return res, keys
 
     # -- one frame --------------------------------------------------------------------
     def step(self, index: int, timestamp: float, image: np.ndarray,
@@ -431,8 +455,8 @@ def estimate_frames(frames: Iterable[tuple[int, float, np.ndarray | None]], came
                     priors: Mapping[int, np.ndarray] | None = None,
                     sigma_distance: float | None = None, sigma_deg: float | None = None,
                     on_keyframe: Callable[[Keyframe], None] | None = None) -> Iterator[FrameResult]:
-    """Yield a :class:`FrameResult` per ``(index, timestamp, image)``, frame 0 first: the one
-    driver of :class:`Odometry`.
+    """Yield a :class:`FrameResult` per ``(index, timestamp, image)``, frame 0 first: the
+    sequence through :meth:`Odometry.advance`.
 
     ``image`` (H, W) float32, or None for a frame that could not be read (recorded lost at
     the prediction); frame 0 must have one (it carries the ground model unless
@@ -442,20 +466,11 @@ def estimate_frames(frames: Iterable[tuple[int, float, np.ndarray | None]], came
     """
     odo = Odometry(camera, plane, region, options, mask=mask, first_keyframe=first_keyframe,
                    sigma_distance=sigma_distance, sigma_deg=sigma_deg)
-    it = iter(frames)
-    try:
-        index, ts, image = next(it)
-    except StopIteration:
-        return
-    seen, first = None, odo.start(index, ts, image)
-    for res in itertools.chain([first], (odo.skip(i, t) if im is None else
-                                         odo.step(i, t, im, (priors or {}).get(i))
-                                         for i, t, im in it)):
+    for index, ts, image in frames:
+        res, keys = odo.advance(index, ts, image, (priors or {}).get(index))
         if on_keyframe is not None:
-            for key in odo.rebuilt_keyframes:  # (rebuilt in place: the points at their terrain grid)
+            for key in keys:
                 on_keyframe(key)
-            if odo.keyframe is not seen:
-                on_keyframe(seen := odo.keyframe)
         yield res
 
 

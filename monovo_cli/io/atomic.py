@@ -59,11 +59,19 @@ def _record(path: Path, size: int, sha256: str) -> None:
 
 class DigestingStream:
     """A text stream to ``path`` (opened for writing, ``newline=""``) that hashes what it
-    writes (UTF-8) and records the digest when closed (:func:`digests_recorded`)."""
+    writes (UTF-8) and records the digest when closed (:func:`digests_recorded`).
 
-    def __init__(self, stream: IO[str], path: Path) -> None:
+    ``prefix``: the bytes already in the file when ``stream`` appends to it, so that the
+    digest and :attr:`size` are the whole file's."""
+
+    def __init__(self, stream: IO[str], path: Path, prefix: bytes = b"") -> None:
         self._stream, self._path = stream, Path(path)
-        self._hash, self._size = hashlib.sha256(), 0
+        self._hash, self._size = hashlib.sha256(prefix), len(prefix)
+
+    @property
+    def size(self) -> int:
+        """The file's length in bytes so far (the prefix and what was written)."""
+        return self._size
 
     def write(self, text: str) -> int:
         data = text.encode("utf-8")
@@ -73,6 +81,11 @@ class DigestingStream:
 
     def flush(self) -> None:
         self._stream.flush()
+
+    def sync(self) -> None:
+        """Flush and fsync: what was written is on the disk, not only in the OS's cache."""
+        self._stream.flush()
+        os.fsync(self._stream.fileno())
 
     def close(self) -> None:
         if not self._stream.closed:

@@ -69,16 +69,19 @@ class MotionRow:
 
 
 class MotionWriter:
-    """Streams motion.csv rows to a text stream, header first, flushing every row."""
+    """Streams motion.csv rows to a text stream, header first (unless ``header`` is False:
+    a stream that continues a file), flushing every row."""
 
-    def __init__(self, stream: IO[str], *, with_std: bool = True, with_reason: bool = False) -> None:
+    def __init__(self, stream: IO[str], *, with_std: bool = True, with_reason: bool = False,
+                 header: bool = True) -> None:
         self._stream = stream
         self._with_std = with_std
         self._with_reason = with_reason
         cols = MOTION_COLUMNS + (STD_COLUMNS if with_std else ()) + \
             ((REASON_COLUMN,) if with_reason else ())
-        self._stream.write(",".join(cols) + "\n")
-        self._stream.flush()
+        if header:
+            self._stream.write(",".join(cols) + "\n")
+            self._stream.flush()
 
     def write(self, row: MotionRow) -> None:
         """One row, flushed."""
@@ -91,14 +94,16 @@ class CovarianceWriter:
     degrees like every other output: m^2, m deg, deg^2 (so ``sqrt(c33)`` is motion.csv's
     ``std_rx``). :meth:`write` takes it in m and rad, as the estimator gives it.
 
-    Columns ``frame, c00, c01, ..., c55``; empty fields for a lost frame.
+    Columns ``frame, c00, c01, ..., c55``; empty fields for a lost frame. The header is
+    written first unless ``header`` is False (a stream that continues a file).
     """
 
-    def __init__(self, stream: IO[str]) -> None:
+    def __init__(self, stream: IO[str], *, header: bool = True) -> None:
         self._stream = stream
         cols = ["frame"] + [f"c{i}{j}" for i in range(6) for j in range(6)]
-        self._stream.write(",".join(cols) + "\n")
-        self._stream.flush()
+        if header:
+            self._stream.write(",".join(cols) + "\n")
+            self._stream.flush()
 
     def write(self, frame: int, cov: np.ndarray) -> None:
         """One row: ``cov`` (6, 6) of (tx, ty, tz, rx, ry, rz) in m and rad."""

@@ -7,6 +7,12 @@ flushed as frames are done; trajectory.csv / .tum are written atomically at the 
 ``checkpoint_every`` frames, and when the run is interrupted, so they always hold exactly
 the frames done, their poses re-scaled in hindsight over those frames
 (:mod:`monovo_cli.mapping.smoothing`) unless ``smooth`` is False.
+
+Every ``checkpoint_every`` frames the run's whole state is saved too
+(:mod:`monovo_cli.io.checkpoint`), with the lengths of the streamed CSVs and the fingerprint
+of the inputs and options (run.yaml's record); a run continued from it (``resume``) cuts the
+CSVs back to those lengths and tracks on from the next frame, so its files are the bytes an
+uninterrupted run writes. The checkpoint is removed when the run is finished.
 """
 
 from __future__ import annotations
@@ -28,6 +34,14 @@ from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.run import TrackRun
 from monovo_cli.errors import InputError, OutputError
 from monovo_cli.io.atomic import DigestingStream, atomic_write_text
+from monovo_cli.io.checkpoint import (
+    CHECKPOINT_FILE,
+    Checkpoint,
+    continue_stream,
+    read_checkpoint,
+    remove_checkpoint,
+    write_checkpoint,
+)
 from monovo_cli.io.formats import CovarianceWriter, MotionRow, MotionWriter, trajectory_csv_text, tum_text
 from monovo_cli.io.model import save_model
 from monovo_cli.io.run_record import run_record, write_run_record
@@ -56,8 +70,10 @@ def prepare_out_dir(out_dir: Path, overwrite: bool) -> None:
     if out_dir.is_dir():
         existing = existing_results(out_dir, RESULT_FILES)
         if existing and not overwrite:
-            raise OutputError(f"{out_dir}: already holds results ({', '.join(existing)}); "
-                              "use --overwrite or another -o")
+            resumable = "; its run was interrupted: use --resume to continue it, or" if \
+                (out_dir / CHECKPOINT_FILE).is_file() else ";"
+            raise OutputError(f"{out_dir}: already holds results ({', '.join(existing)})"
+                              f"{resumable} use --overwrite or another -o")
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -113,7 +129,7 @@ def _signals_held() -> Iterator[None]:
 
 def _remove_stale_temporaries(out_dir: Path) -> None:
     """Temporary files a killed run (kill -9) left behind next to the results."""
-    for name in RESULT_FILES:
+    for name in (*RESULT_FILES, CHECKPOINT_FILE):
         for tmp in Path(out_dir).glob(f".{name}.*.tmp"):
             tmp.unlink(missing_ok=True)
 
@@ -124,7 +140,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                    groundtruth: Path | None = None, mask: Path | None = None,
                    prior: Path | None = None, covariance: Path | None = None,
                    topic: str | None = None, terrain_out: bool = False, smooth: bool = True,
-                   report: bool = True, progress: Callable[[int, int], None] | None = None) -> TrackRun:
+                   report: bool = True, resume: bool = False,
+                   progress: Callable[[int, int], None] | None = None) -> TrackRun | None:
     """``monovo track``: estimate every frame's motion and write motion.csv, trajectory.csv
     and trajectory.tum (docs/guide.md "File formats").
 
@@ -145,10 +162,17 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     ``smooth`` False writes the trajectory as estimated, not re-scaled in hindsight.
     ``report`` (with an output directory): also report.html, the run on one self-contained
     page (:func:`~monovo_cli.pipeline.report.write_report`).
-    ``progress(done, total)`` is called after every frame. Returns the run
-    (:class:`~monovo_cli.core.run.TrackRun`).
+    ``checkpoint_every`` (with an output directory): every so many frames the trajectory
+    files and the checkpoint are written (0: the trajectory at the end only, no
+    checkpoint). ``resume`` (with an output directory): continue the run interrupted there
+    from its checkpoint, or from frame 0 when it has none; an InputError when the
+    checkpoint was taken with other inputs or options. ``progress(done, total)`` is called
+    after every frame. Returns the run (:class:`~monovo_cli.core.run.TrackRun`), or None
+    when ``resume`` finds the run in ``out_dir`` finished (nothing to do).
     """
     check_covariance_path(covariance, out_dir)
+    if resume and out_dir is None:
+        raise InputError("resuming a run needs the output directory it was writing, not stdout")
     opened = open_sequence(seq, params, topic=topic)
     frames, cfg = opened.frames, opened.config
     usable = read_mask(Path(mask), cfg) if mask is not None else None
@@ -159,11 +183,9 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     first_key = None
     if model is not None:
         first_key = model_keyframe(Path(model), opened, options, usable)
+    saved: Checkpoint | None = None
+    fingerprint: dict = {}
     if out_dir is not None:
-        prepare_out_dir(out_dir, overwrite)
-        for name in RESULT_FILES:  # stale results of an earlier run must not survive
-            (Path(out_dir) / name).unlink(missing_ok=True)
-        _remove_stale_temporaries(Path(out_dir))
         record = run_record(
             "track", options, {"sequence": Path(seq), "params": cfg.path,
                                "topic": topic, "model": model, "mask": mask, "prior": prior,
@@ -172,9 +194,24 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                                "smooth": smooth},
             frames, cfg.path, {"model": model, "mask": mask, "prior": prior,
                                "groundtruth": groundtruth})
-        write_run_record(Path(out_dir), record)
+        fingerprint = _fingerprint(record)
+        if resume:
+            saved = _resume_point(Path(out_dir), fingerprint)
+            if saved is None and (Path(out_dir) / "trajectory.png").is_file():
+                log.info("%s: the run there is finished; nothing to resume", out_dir)
+                return None
+        prepare_out_dir(out_dir, overwrite or resume)
+        _remove_stale_temporaries(Path(out_dir))
         motion = Path(out_dir) / "motion.csv"
-        stream = DigestingStream(open(motion, "w", newline="", encoding="utf-8"), motion)
+        if saved is None:
+            for name in RESULT_FILES:  # stale results of an earlier run must not survive
+                (Path(out_dir) / name).unlink(missing_ok=True)
+            remove_checkpoint(Path(out_dir))
+            write_run_record(Path(out_dir), record)
+            stream = DigestingStream(open(motion, "w", newline="", encoding="utf-8"), motion)
+        else:
+            log.info("%s: continuing the run from frame %d", out_dir, saved.next_frame)
+            stream = continue_stream(motion, saved.motion_bytes)
     else:
         stream = sys.stdout
 
@@ -190,6 +227,10 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
 
     index: list[int] = []  # the frames done, in order, and their times
     times: list[float] = []
+    if saved is not None:
+        tracking.restore(saved.state)
+        index += saved.state.recorder.index
+        times += saved.state.recorder.timestamp
 
     def write_trajectory(poses: np.ndarray) -> None:
         if out_dir is None or not len(poses):
@@ -197,12 +238,30 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
         atomic_write_text(Path(out_dir) / "trajectory.csv", trajectory_csv_text(index, times, poses))
         atomic_write_text(Path(out_dir) / "trajectory.tum", tum_text(times, poses))
 
+    def write_checkpoint_now() -> None:
+        stream.sync()  # the rows the checkpoint counts are on the disk before it
+        if cov_stream is not None:
+            cov_stream.sync()
+        write_checkpoint(Path(out_dir), Checkpoint(
+            tracking.done, fingerprint, tracking.state(), stream.size,
+            cov_stream.size if cov_stream is not None else None,
+            time.perf_counter() - t0))
+
     run: TrackRun | None = None
-    cov_writer = None
-    t0 = time.perf_counter()
+    cov_writer = cov_stream = None
+    t0 = time.perf_counter() - (saved.seconds if saved is not None else 0.0)
     try:
-        writer = MotionWriter(stream, with_std=True, with_reason=True)
-        cov_writer = CovarianceWriter(_open_output(Path(covariance))) if covariance else None
+        writer = MotionWriter(stream, with_std=True, with_reason=True, header=saved is None)
+        if covariance and saved is not None:
+            if saved.covariance_bytes is None:
+                raise InputError(f"{out_dir}: the checkpoint holds no covariance rows; start "
+                                 "the run afresh: allow overwriting or choose another output")
+            cov_stream = continue_stream(Path(covariance), saved.covariance_bytes)
+        elif covariance:
+            cov_stream = _open_output(Path(covariance))
+        cov_writer = CovarianceWriter(cov_stream, header=saved is None) if cov_stream else None
+        if saved is not None:  # the trajectory of the frames kept (a later one may be there)
+            write_trajectory(tracking.trajectory())
         for res in tracking.results(record=False):
             with _signals_held():
                 tracking.record(res)
@@ -216,6 +275,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                         log.info("frame %d %s: %s", res.index, res.status, res.reason)
                 if checkpoint_every and tracking.done % checkpoint_every == 0:
                     write_trajectory(tracking.trajectory())
+                    if out_dir is not None:
+                        write_checkpoint_now()
             if progress is not None:
                 progress(tracking.done, len(frames))
         run = tracking.result(time.perf_counter() - t0)
@@ -235,7 +296,39 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
             write_report(Path(out_dir), run, cfg, record, title=Path(seq).resolve().name,
                          trajectory_image=path_image, heightmap_image=heights,
                          thumbnails=tracking.thumbnails, groundtruth=groundtruth)
+        remove_checkpoint(Path(out_dir))  # finished: nothing to resume
     return run
+
+
+def _fingerprint(record: dict) -> dict:
+    """What a checkpoint must have been taken with to be continued: run.yaml's ``record``
+    less when the run started and whether it could replace earlier results."""
+    options = {k: v for k, v in record["options"].items() if k != "overwrite"}
+    return {"monovo": record["monovo"], "command": record["command"], "options": options,
+            "inputs": record["inputs"]}
+
+
+def _resume_point(out_dir: Path, fingerprint: dict) -> Checkpoint | None:
+    """``out_dir``'s checkpoint if it was taken with ``fingerprint`` (None: there is none);
+    an InputError naming the first setting or input that differs otherwise."""
+    saved = read_checkpoint(out_dir)
+    if saved is not None and saved.fingerprint != fingerprint:
+        what = _first_difference(saved.fingerprint, fingerprint) or "the record"
+        raise InputError(f"{out_dir}: its run was made with other inputs or options ({what} "
+                         "differs); continue it with the same ones, or start afresh: allow "
+                         "overwriting or choose another output")
+    return saved
+
+
+def _first_difference(a: object, b: object, where: str = "") -> str:
+    """The dotted key of the first value that differs between ``a`` and ``b`` ('' if none)."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        for key in sorted(set(a) | set(b), key=str):
+            found = _first_difference(a.get(key), b.get(key), f"{where}.{key}" if where else str(key))
+            if found:
+                return found
+        return ""
+    return "" if a == b else where
 
 
 def _open_output(path: Path) -> DigestingStream:

@@ -27,7 +27,7 @@ import cv2
 import numpy as np
 
 from monovo_cli.core.keyframe import Keyframe
-from monovo_cli.core.odometry import FrameResult, estimate_frames
+from monovo_cli.core.odometry import FrameResult, Odometry
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.run import RunRecorder, TrackRun
 from monovo_cli.core.status import FrameStatus
@@ -36,7 +36,7 @@ from monovo_cli.io.config import InitConfig, check_frame_size, load_init
 from monovo_cli.io.sources import Frame, FrameSource, find_init_yaml, open_frames, resolve_sequence
 from monovo_cli.mapping.smoothing import SmoothedDrive, smooth_drive
 from monovo_cli.mapping.terrain_map import TerrainMap
-from monovo_cli.pipeline.threads import each_on_one_blas_thread, one_blas_thread
+from monovo_cli.pipeline.threads import one_blas_thread
 
 log = logging.getLogger(__name__)
 
@@ -88,6 +88,23 @@ def naming(path: Path) -> Iterator[None]:
         raise TrackingError(f"{path}: {exc}") from None
 
 
+@dataclass(frozen=True)
+class TrackingState:
+    """A :class:`Tracking` between two frames (:meth:`Tracking.state`): ``next_frame`` the
+    index of the next frame to track, the ``odometry`` and the ``recorder`` of the frames
+    before it, the ``terrain`` map (None when not kept), ``last_image`` (H, W), the last
+    frame's image (None if it could not be read), and its index ``last_index``;
+    ``thumbnails`` the keyframe thumbnails kept so far with their thinning's counters."""
+
+    next_frame: int
+    odometry: Odometry
+    recorder: RunRecorder
+    terrain: TerrainMap | None
+    last_image: np.ndarray | None
+    last_index: int = -1
+    thumbnails: tuple = ({}, 1, 0, -1)
+
+
 class Tracking:
     """One tracking run over an :class:`OpenedSequence`, frame by frame.
 
@@ -95,7 +112,9 @@ class Tracking:
     first, and records it; :meth:`result` then gives the :class:`TrackRun`, its trajectory
     smoothed in hindsight once (``smooth``). A caller that must commit a frame's outputs
     together with its record (``monovo track`` holds signals over both) iterates
-    :meth:`results` with ``record=False`` and calls :meth:`record` itself.
+    :meth:`results` with ``record=False`` and calls :meth:`record` itself. :meth:`state`
+    between two frames, given to :meth:`restore` of another Tracking of the same sequence
+    and settings, continues the run exactly (``monovo track --resume``).
 
     ``options`` the tracking options; ``mask`` (H, W) bool, the pixels that may be used;
     ``priors`` frame index -> prior motion T_{k-1}_k (4x4) replacing the constant-velocity
@@ -119,10 +138,15 @@ class Tracking:
         self.options = options or TrackOptions()
         self.smooth = smooth
         self.terrain = TerrainMap(seq.config.plane) if terrain else None
-        self._mask, self._priors, self._first_key = mask, dict(priors or {}), first_keyframe
+        self._priors = dict(priors or {})
         self._skip_bad_frames = skip_bad_frames
         self._stopped = stopped or (lambda index: f"frames 0..{index - 1} were done")
+        cfg = seq.config
+        self._odometry = Odometry(cfg.camera, cfg.plane, cfg.region, self.options, mask=mask,
+                                  first_keyframe=first_keyframe,
+                                  sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg)
         self._recorder = RunRecorder()
+        self._next = 0  # the next frame to track
         self._last_image: np.ndarray | None = None
         self._last_index = -1
         self.thumbnails: dict[int, np.ndarray] = {}
@@ -138,23 +162,20 @@ class Tracking:
         return self.results(record=True)
 
     def results(self, *, record: bool) -> Iterator[FrameResult]:
-        """Each frame's result, frame 0 first; recorded as it comes if ``record``."""
-        cfg = self.seq.config
-
-        def on_keyframe(key: Keyframe) -> None:
-            self._recorder.add_keyframe(key)
-            if self.terrain is not None:
-                self.terrain.add(key, self._last_image)
-            if self._thumbnail_limit > 0:
-                self._keep_thumbnail(int(key.index))
-
-        tracked = each_on_one_blas_thread(estimate_frames(
-            self._images(), cfg.camera, cfg.plane, cfg.region, self.options, mask=self._mask,
-            first_keyframe=self._first_key, priors=self._priors, on_keyframe=on_keyframe,
-            sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg))
-        with naming(self.seq.first.path):  # frame 0 builds the ground model
-            first = next(tracked)
-        for res in _chain(first, tracked):
+        """Each frame's result, frame 0 first (or the frame after a :meth:`restore`d
+        state); recorded as it comes if ``record``."""
+        odo, priors = self._odometry, self._priors
+        for index, timestamp, image in self._images():
+            with one_blas_thread(), (naming(self.seq.first.path) if self._next == 0
+                                     else contextlib.nullcontext()):  # frame 0: the ground model
+                res, keys = odo.advance(index, timestamp, image, priors.get(index))
+                for key in keys:
+                    self._recorder.add_keyframe(key)
+                    if self.terrain is not None:
+                        self.terrain.add(key, self._last_image)
+                    if self._thumbnail_limit > 0:
+                        self._keep_thumbnail(int(key.index))
+            self._next = index + 1
             if record:
                 self.record(res)
             yield res
@@ -178,6 +199,31 @@ class Tracking:
             self._thumbnail_stride *= 2
             keep = sorted(self.thumbnails)[::2]
             self.thumbnails = {k: self.thumbnails[k] for k in keep}
+
+    def state(self) -> TrackingState:
+        """Everything this run holds between two frames, after the frames recorded so far:
+        :meth:`restore` on a new Tracking of the same sequence and settings continues it
+        exactly. Take it after :meth:`record` of the last frame yielded (the objects are
+        shared, not copied: pickle it before the next frame)."""
+        if self._next != self.done:
+            raise ValueError(f"state: {self._next} frames tracked but {self.done} recorded")
+        return TrackingState(self._next, self._odometry, self._recorder, self.terrain,
+                             self._last_image, self._last_index,
+                             (self.thumbnails, self._thumbnail_stride, self._keyframes_seen,
+                              self._last_keyframe))
+
+    def restore(self, state: TrackingState) -> None:
+        """Continue from ``state`` (:meth:`state` of a run of the same sequence and settings):
+        :meth:`results` goes on with frame ``state.next_frame``."""
+        if not 0 < state.next_frame <= len(self.seq.frames):
+            raise InputError(f"{self.seq.frames.dir}: the saved state continues at frame "
+                             f"{state.next_frame}, but the sequence has {len(self.seq.frames)}")
+        self._next, self._odometry, self._recorder = (state.next_frame, state.odometry,
+                                                      state.recorder)
+        self.terrain, self._last_image = state.terrain, state.last_image
+        self._last_index = state.last_index
+        (self.thumbnails, self._thumbnail_stride, self._keyframes_seen,
+         self._last_keyframe) = state.thumbnails
 
     def record(self, res: FrameResult) -> None:
         """Add ``res`` to the run (:meth:`results` with ``record=False``)."""
@@ -221,9 +267,10 @@ class Tracking:
         records as lost.
         """
         frames, first = self.seq.frames, self.seq.first
-        self._last_image, self._last_index = first.image, first.index
-        yield first.index, first.timestamp, first.image
-        for index in range(1, len(frames)):
+        if self._next == 0:
+            self._last_image, self._last_index = first.image, first.index
+            yield first.index, first.timestamp, first.image
+        for index in range(max(self._next, 1), len(frames)):
             try:
                 frame = frames.read(index)
             except InputError as exc:
@@ -238,11 +285,6 @@ class Tracking:
             else:
                 self._last_image, self._last_index = frame.image, frame.index
                 yield frame.index, frame.timestamp, frame.image
-
-
-def _chain(first: FrameResult, rest: Iterator[FrameResult]) -> Iterator[FrameResult]:
-    yield first
-    yield from rest
 
 
 def read_mask(path: Path, cfg: InitConfig) -> np.ndarray:
