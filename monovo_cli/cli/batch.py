@@ -37,8 +37,8 @@ from monovo_cli.cli.options import (
 @click.option("--dask", "use_dask", is_flag=True,
               help="Run on a local Dask cluster of --workers processes.")
 @click.option("--resume", is_flag=True,
-              help="Skip the sequences whose outputs are complete (done.json checks out); "
-                   "redo the others.")
+              help="Skip the sequences whose outputs are complete and succeeded (done.json "
+                   "checks out); redo the others, failed ones included.")
 @overwrite_option("Redo every sequence, replacing its outputs.")
 @skip_bad_frames_option("the sequence fails")
 @topic_option
@@ -56,8 +56,10 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
     OUTROOT/summary.csv has a row per sequence (status ok / skipped / failed).
     A failed sequence never stops the others. --prior and --covariance name a file
     inside each sequence folder / output folder; --mask is one PNG for all.
-    Exit status: 0 all done; 2 some sequences had bad input (after finishing the
-    rest); 1 some failed on an internal error or a lost worker.
+    Exit status (after finishing the rest): 0 all done; 1 some failed on an internal
+    error or a lost worker; else 2 some had bad input; else 3 some lost more than half
+    of their frames (outputs kept). --resume skips only the sequences done with success
+    and tracks the failed ones again, so a rerun gives the same status.
       monovo batch archive -o results --workers 2
       monovo batch archive -o results --resume
       monovo batch archive -o results --scheduler tcp://head:8786
@@ -100,4 +102,7 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
         if s.internal_errors:
             click.echo(f"Error: {msg}", err=True)
             raise click.exceptions.Exit(1)
-        raise BadInput(msg)
+        if s.input_errors:
+            raise BadInput(msg)
+        click.echo(f"monovo: {msg}", err=True)  # outputs kept, as monovo track's status 3
+        raise click.exceptions.Exit(3)

@@ -41,6 +41,7 @@ from monovo_cli.pipeline.batch_job import (
     find_sequences,
     is_complete,
     limit_threads,
+    recorded_failure,
     result,
     sequence_name,
     track_one,
@@ -271,8 +272,14 @@ class BatchSummary:
 
     @property
     def internal_errors(self) -> list[dict[str, Any]]:
-        """The failures that were not bad input (internal errors, lost frames, lost workers)."""
-        return [r for r in self.failed if r.get("error_kind") != "input"]
+        """The failures that are monovo's fault: internal errors and lost workers (not bad
+        input, not sequences tracked to the end with most of their frames lost)."""
+        return [r for r in self.failed if r.get("error_kind") not in ("input", "lost")]
+
+    @property
+    def input_errors(self) -> list[dict[str, Any]]:
+        """The failures on bad input (a file to fix)."""
+        return [r for r in self.failed if r.get("error_kind") == "input"]
 
 
 def _existing_results(out_dir: Path) -> bool:
@@ -298,10 +305,12 @@ def run_batch(root: str | Path, out_root: str | Path, options: JobOptions | None
     (``dask``), or on the Dask scheduler at ``scheduler`` (``tcp://HOST:PORT``; its workers
     must see ``root`` and ``out_root`` at the same paths and have monovo installed).
 
-    ``resume``: skip the sequences whose outputs are complete (:func:`is_complete`) and redo
-    the others; ``overwrite``: redo all. Without either, an output folder that already holds
-    results is an OutputError before anything runs. A sequence that fails is recorded and
-    the others go on. ``out_root/summary.csv`` (:func:`write_summary`) is rewritten
+    ``resume``: skip the sequences whose outputs are complete (:func:`is_complete`) and
+    recorded as a success, and redo the others -- a sequence that failed (more than half of
+    its frames lost, :func:`recorded_failure`) is tracked again, so it is reported failed
+    with its reason until it succeeds; ``overwrite``: redo all. Without either, an output
+    folder that already holds results is an OutputError before anything runs. A sequence
+    that fails is recorded and the others go on. ``out_root/summary.csv`` (:func:`write_summary`) is rewritten
     atomically at least every ``summary_every_s`` seconds while results come in, at the
     end, and when the batch is interrupted (unfinished sequences ``pending``).
     ``progress(done, total)`` is called as sequences finish (skipped ones count as done).
@@ -340,8 +349,11 @@ def run_batch(root: str | Path, out_root: str | Path, options: JobOptions | None
         res = result(seq_dir, out_dir, status="pending", worker="")
         if resume:
             complete, why = is_complete(seq_dir, out_dir, opts)
-            if complete:
+            failure = recorded_failure(out_dir) if complete else None
+            if complete and failure is None:
                 res = done_result(seq_dir, out_dir)
+            elif failure is not None:
+                log.info("%s: redone (it failed: %s)", name, failure)
             elif _existing_results(out_dir):
                 log.info("%s: redone (%s)", name, why)
         elif not overwrite and _existing_results(out_dir):
