@@ -39,6 +39,21 @@ FLAG_WORDS = (
 )
 
 
+#: The key of ``click.Context.meta`` under which a command says what an interruption keeps
+#: (:func:`kept_on_interrupt`); the default is files on disk.
+KEPT_ON_INTERRUPT = "monovo.kept_on_interrupt"
+
+
+def kept_on_interrupt(what: str) -> None:
+    """Say, in the message of an interruption of the running command, what it keeps
+    (``what``: e.g. "the rows of the frames done went to stdout")."""
+    click.get_current_context().meta[KEPT_ON_INTERRUPT] = what
+
+
+def _kept(ctx: click.Context) -> str:
+    return ctx.meta.get(KEPT_ON_INTERRUPT, "the frames done so far are on disk")
+
+
 def with_flags(text: str) -> str:
     """``text``, a library message, with the settings it names by their meaning named by their
     command-line flags instead (:data:`FLAG_WORDS`)."""
@@ -75,10 +90,10 @@ class MonovoGroup(click.Group):
         except (click.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
         except KeyboardInterrupt:
-            click.echo("monovo: interrupted; the frames done so far are on disk", err=True)
+            click.echo(f"monovo: interrupted; {_kept(ctx)}", err=True)
             sys.exit(130)
         except Terminated:
-            click.echo("monovo: terminated; the frames done so far are on disk", err=True)
+            click.echo(f"monovo: terminated; {_kept(ctx)}", err=True)
             sys.exit(143)
         except BrokenPipeError:
             # The reader of -o - went away (e.g. '| head'): stop quietly like any Unix

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from monovo_cli.cli.group import common, progress_bar
+from monovo_cli.cli.group import common, kept_on_interrupt, progress_bar
 from monovo_cli.cli.options import (
     LOOP,
     given,
@@ -51,6 +51,9 @@ def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, ski
         from monovo_cli.errors import InputError
 
         raise InputError("--terrain-out writes files: give an output directory (-o DIR), not -o -")
+    if to_stdout:
+        kept_on_interrupt("the rows of the frames done so far went to stdout; no file was "
+                          "written")
     with progress_bar(verbosity.quiet, "frame") as bar:
         s = track_sequence(seq, params, None if to_stdout else Path(out), options,
                            groundtruth=groundtruth, mask=mask, prior=prior, covariance=covariance,
