@@ -36,6 +36,10 @@ FLAG_WORDS = (
     ("(a tracking run writes one with its terrain products)",  # io.terrain
      "(written by 'monovo track SEQ -o DIR --terrain-out')"),
     ("name one as the image topic", "name one with --topic"),  # io.sources.bag
+    ("rerun recording unreadable frames as lost and replacing these outputs",  # pipeline.tracking
+     "rerun with --skip-bad-frames --overwrite to record bad frames as lost and go on"),
+    ("rerun recording unreadable frames as lost",  # pipeline.tracking, with -o -
+     "rerun with --skip-bad-frames to record bad frames as lost and go on"),
 )
 
 

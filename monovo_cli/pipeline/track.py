@@ -180,7 +180,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
 
     tracking = Tracking(opened, options, mask=usable, priors=priors, first_keyframe=first_key,
                         skip_bad_frames=skip_bad_frames, smooth=smooth,
-                        terrain=terrain_out and out_dir is not None, stopped=stopped)
+                        terrain=terrain_out and out_dir is not None, stopped=stopped,
+                        rerun_replaces=out_dir is not None)
 
     index: list[int] = []  # the frames done, in order, and their times
     times: list[float] = []

@@ -101,14 +101,17 @@ class Tracking:
     guess; ``first_keyframe`` a frame-0 ground model built before (``monovo init``);
     ``skip_bad_frames`` records a frame that cannot be read (after frame 0) as lost instead
     of stopping; ``terrain`` keeps what tracking learns of the ground (:attr:`terrain`);
-    ``stopped(index)`` adds to the message of a frame that cannot be read what was kept.
+    ``stopped(index)`` adds to the message of a frame that cannot be read what was kept;
+    ``rerun_replaces`` says in it that the rerun it suggests (recording unreadable frames as
+    lost) must be allowed to replace the outputs written so far.
     """
 
     def __init__(self, seq: OpenedSequence, options: TrackOptions | None = None, *,
                  mask: np.ndarray | None = None, priors: Mapping[int, np.ndarray] | None = None,
                  first_keyframe: Keyframe | None = None, skip_bad_frames: bool = False,
                  smooth: bool = True, terrain: bool = False,
-                 stopped: Callable[[int], str] | None = None) -> None:
+                 stopped: Callable[[int], str] | None = None,
+                 rerun_replaces: bool = False) -> None:
         self.seq = seq
         self.options = options or TrackOptions()
         self.smooth = smooth
@@ -116,6 +119,7 @@ class Tracking:
         self._mask, self._priors, self._first_key = mask, dict(priors or {}), first_keyframe
         self._skip_bad_frames = skip_bad_frames
         self._stopped = stopped or (lambda index: f"frames 0..{index - 1} were done")
+        self._rerun_replaces = rerun_replaces
         self._recorder = RunRecorder()
         self._last_image: np.ndarray | None = None
         self.drive: SmoothedDrive | None = None
@@ -196,11 +200,13 @@ class Tracking:
                 frame = frames.read(index)
             except InputError as exc:
                 if not self._skip_bad_frames:
+                    rerun = ("rerun recording unreadable frames as lost and replacing these "
+                             "outputs" if self._rerun_replaces else
+                             "rerun recording unreadable frames as lost")
                     raise InputError(f"{exc}; tracking stopped at frame {index} "
-                                     f"({self._stopped(index)}); replace the file, or use "
-                                     "--skip-bad-frames to record bad frames as lost and go "
-                                     "on") from None
-                log.warning("%s; recorded as lost (--skip-bad-frames)", exc)
+                                     f"({self._stopped(index)}); replace the file, or "
+                                     f"{rerun}") from None
+                log.warning("%s; recorded as lost (unreadable frames are skipped)", exc)
                 self._last_image = None
                 yield index, float(frames.timestamps[index]), None
             else:

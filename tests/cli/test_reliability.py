@@ -111,6 +111,30 @@ def test_skip_bad_frames_records_lost_and_goes_on(base_seq, tmp_path):
     np.testing.assert_allclose(t3, t2, atol=1e-9)
 
 
+def test_the_rerun_a_bad_frame_suggests_works(base_seq, tmp_path):
+    """The message of a bad frame in the middle names a rerun; that rerun, into the same
+    folder, is accepted and records the frame as lost."""
+    import shutil
+
+    seq, out = tmp_path / "seq", tmp_path / "out"
+    shutil.copytree(base_seq, seq)
+    sorted((seq / "frames").glob("*.png"))[3].write_bytes(b"")
+    r = CliRunner().invoke(main, ["track", str(seq), "-o", str(out), "-q"])
+    assert r.exit_code == 2
+    suggested = "rerun with --skip-bad-frames --overwrite to record bad frames as lost"
+    assert suggested in r.output, r.output
+    r = CliRunner().invoke(main, ["track", str(seq), "-o", str(out), "-q", "--skip-bad-frames",
+                                  "--overwrite"])
+    assert r.exit_code == 0, r.output
+    rows = list(csv.DictReader((out / "motion.csv").open()))
+    assert [r["status"] for r in rows][2] == "lost"
+    # streaming: nothing to replace, the flag alone
+    r = CliRunner().invoke(main, ["track", str(seq), "-o", "-", "-q"])
+    assert r.exit_code == 2
+    assert "rerun with --skip-bad-frames to record bad frames as lost" in r.output
+    assert "--overwrite" not in r.output
+
+
 def test_streaming_error_keeps_stdout_pure_csv(base_seq, tmp_path):
     out = run_case(_case("frame-mid-stream"), tmp_path, base_seq)
     assert out.status == 2
