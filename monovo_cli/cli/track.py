@@ -47,10 +47,12 @@ def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, ski
     from monovo_cli.pipeline.track import track_sequence
 
     to_stdout = out == "-"
-    if terrain_out and to_stdout:
+    if to_stdout and (terrain_out or groundtruth is not None):
         from monovo_cli.errors import InputError
 
-        raise InputError("--terrain-out writes files: give an output directory (-o DIR), not -o -")
+        why = ("--terrain-out writes files" if terrain_out else
+               "--groundtruth is drawn beside the estimate in trajectory.png, a file")
+        raise InputError(f"{why}: give an output directory (-o DIR), not -o -")
     if to_stdout:
         kept_on_interrupt("the rows of the frames done so far went to stdout; no file was "
                           "written")
