@@ -354,3 +354,11 @@ def test_degenerate_frames_are_lost(degenerate_runs, kind):
     assert status == 0, output
     got = {k: rows[k]["status"] for k in replaced}
     assert got == {k: "lost" for k in replaced}, got
+
+
+def test_the_exit_status_table_lists_every_status():
+    """Every status a command exits with has its row (0, 1, 2, 3 and the signals')."""
+    text = DOC.read_text()
+    table = text[text.index("## Exit statuses"):text.index("## Bad inputs")]
+    statuses = {ln.split("|")[1].strip() for ln in table.splitlines() if ln.startswith("| ")}
+    assert {"0", "1", "2", "3", "130", "141", "143"} <= statuses, statuses
