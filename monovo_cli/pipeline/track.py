@@ -37,7 +37,7 @@ from monovo_cli.pipeline.preflight import (
     groundtruth_poses,
     model_keyframe,
 )
-from monovo_cli.pipeline.products import write_terrain, write_trajectory_plot
+from monovo_cli.pipeline.products import sequence_name, write_terrain, write_trajectory_plot
 from monovo_cli.pipeline.threads import one_blas_thread
 from monovo_cli.pipeline.tracking import Tracking, naming, open_sequence, read_mask, read_prior
 
@@ -222,9 +222,10 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
             if cov_writer is not None:
                 cov_writer.close()
     if out_dir is not None:
-        write_trajectory_plot(Path(out_dir), cfg.plane, run, gt_poses)
+        name = sequence_name(frames.dir)
+        write_trajectory_plot(Path(out_dir), cfg.plane, run, gt_poses, name)
         if tracking.terrain is not None:
-            write_terrain(Path(out_dir), tracking.terrain, run.trajectory, tracking.drive)
+            write_terrain(Path(out_dir), tracking.terrain, run.trajectory, tracking.drive, name)
     return run
 
 
