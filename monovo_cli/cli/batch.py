@@ -6,7 +6,14 @@ from pathlib import Path
 
 import click
 
-from monovo_cli.cli.group import BadInput, common, log_level, progress_bar, with_flags
+from monovo_cli.cli.group import (
+    BadInput,
+    common,
+    flags_in_log,
+    log_level,
+    progress_bar,
+    with_flags,
+)
 from monovo_cli.cli.options import (
     LOOP,
     given,
@@ -82,7 +89,8 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
         from tqdm.contrib.logging import logging_redirect_tqdm
 
         redirect = logging_redirect_tqdm()
-    with progress_bar(verbosity.quiet, "seq") as bar, redirect:
+    with progress_bar(verbosity.quiet, "seq") as bar, redirect, \
+            flags_in_log("monovo_cli.pipeline.batch"):  # each failure's warning
         s = run_batch(root, out, job, pattern=pattern, workers=workers,
                       scheduler=scheduler, dask=use_dask, resume=resume, overwrite=overwrite,
                       log_level=log_level(verbosity), progress=bar)
@@ -97,8 +105,10 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
                 click.echo(f"{r['sequence']}:\n{r['traceback']}", err=True)
     if failed:
         first = failed[0]
-        msg = with_flags(f"{len(failed)} of {n} sequence(s) failed, first {first['sequence']}: "
-                         f"{first['error']} (all in {s.summary_path})")
+        # Without -q each failure's error was logged above as it came: not again here.
+        error = f": {first['error']}" if verbosity.quiet else " (its error above)"
+        msg = with_flags(f"{len(failed)} of {n} sequence(s) failed, first {first['sequence']}"
+                         f"{error} (all in {s.summary_path})")
         if s.internal_errors:
             click.echo(f"Error: {msg}", err=True)
             raise click.exceptions.Exit(1)

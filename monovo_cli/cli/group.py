@@ -66,6 +66,26 @@ def with_flags(text: str) -> str:
     return text
 
 
+class _FlagWords(logging.Filter):
+    """Puts the flags into a library log record's message (:func:`with_flags`)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        record.msg, record.args = with_flags(record.getMessage()), None
+        return True
+
+
+@contextmanager
+def flags_in_log(name: str) -> Iterator[None]:
+    """While in the block, the records of the library logger ``name`` name settings by their
+    command-line flags (:func:`with_flags`), as the command's own error line does."""
+    logger, words = logging.getLogger(name), _FlagWords()
+    logger.addFilter(words)
+    try:
+        yield
+    finally:
+        logger.removeFilter(words)
+
+
 class Terminated(BaseException):
     """SIGTERM arrived (a BaseException, like KeyboardInterrupt, so no ``except Exception``
     in the library swallows it)."""

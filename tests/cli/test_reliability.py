@@ -135,6 +135,13 @@ def test_the_rerun_a_bad_frame_suggests_works(base_seq, tmp_path):
     assert "--overwrite" not in r.output
 
 
+def test_a_blank_frame_0_is_not_told_to_lower_the_threshold(base_seq, tmp_path):
+    """No threshold gives points on a constant frame: the message does not suggest one."""
+    out = run_case(_case("textureless-frame0"), tmp_path, base_seq)
+    assert out.status == 2
+    assert "lower" not in out.stderr and "--threshold" not in out.stderr, out.stderr
+
+
 def test_streaming_error_keeps_stdout_pure_csv(base_seq, tmp_path):
     out = run_case(_case("frame-mid-stream"), tmp_path, base_seq)
     assert out.status == 2

@@ -523,8 +523,9 @@ CASES: list[Case] = [
                     "data: [1, 0, 64, 0, 1, 64]}\n")),
     # --- the ground model --------------------------------------------------------------
     _c("textureless-frame0", "ground model", "textureless first frame (constant grey)",
-       TRACK_COPY, 2, ("observation points", "lower --threshold", "another region"),
-       _damage_frame(0, "constant")),
+       TRACK_COPY, 2, ("observation points", "no threshold would give enough", "check the frame",
+                       "another region"),
+       _damage_frame(0, "constant"), note="no threshold helps, so none is suggested"),
     _c("threshold-too-high", "ground model", "--threshold above every gradient",
        (*T, "{seq}", *OUT, "--threshold", "1e9"), 2, ("observation points", "lower --threshold")),
     # --- outputs -------------------------------------------------------------------------

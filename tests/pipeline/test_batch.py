@@ -324,3 +324,19 @@ def test_resume_tracks_again_a_sequence_its_done_json_records_as_failed(noisy_ar
     s = run_batch(noisy_archive, out, workers=1, pattern="noisy", resume=True)
     assert [(r["status"], r["error_kind"]) for r in s.results] == [("failed", "lost")]
     assert (out / "noisy" / "motion.csv").stat().st_mtime_ns != before
+
+
+def test_a_failure_is_told_once_with_its_flags(noisy_archive, tmp_path):
+    """Without -q each failure's error is logged as it comes (with the command line's flags),
+    and the last line points at it instead of repeating it; with -q the last line holds it."""
+    args = ["batch", str(noisy_archive), "-o", str(tmp_path / "o"), "--workers", "1",
+            "--glob", "good", "--threshold", "1e9"]
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 2, r.output
+    assert r.output.count("only 0 observation points") == 1, r.output
+    assert "lower --threshold" in r.output and "gradient threshold" not in r.output
+    assert "first good (its error above)" in r.output
+    r = CliRunner().invoke(main, [*args, "-q", "--overwrite"])
+    assert r.exit_code == 2, r.output
+    assert r.output.count("only 0 observation points") == 1, r.output
+    assert "first good: " in r.output and "lower --threshold" in r.output
