@@ -64,7 +64,8 @@ to stdout and no file is written) |
 | 141 | the reader of `-o -` went away (e.g. `monovo track ... -o - \\| head`): monovo stops \
 quietly, like a filter killed by SIGPIPE |
 
-`-v` adds the traceback to any error (status 2 or 1). Usage errors (an unknown option, a
+`-v` adds the traceback to an internal error (status 1), `-vv` to any error (a bad
+input stays one line with `-v`). Usage errors (an unknown option, a
 value out of range) are reported by click: the same single `Error:` line, preceded by the
 command's `Usage:` line and a `Try 'monovo ... -h'` hint.
 

@@ -71,8 +71,6 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
       monovo batch archive -o results --resume
       monovo batch archive -o results --scheduler tcp://head:8786
     """
-    import contextlib
-
     from monovo_cli.pipeline.batch import run_batch
     from monovo_cli.pipeline.batch_job import JobOptions
 
@@ -83,14 +81,8 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
                      prior=str(prior) if prior else None,
                      covariance=str(covariance) if covariance else None,
                      skip_bad_frames=skip_bad_frames, topic=topic, **given(smooth=smooth))
-    if verbosity.quiet:
-        redirect = contextlib.nullcontext()
-    else:  # warnings about failed sequences above the bar, not through it
-        from tqdm.contrib.logging import logging_redirect_tqdm
-
-        redirect = logging_redirect_tqdm()
-    with progress_bar(verbosity.quiet, "seq") as bar, redirect, \
-            flags_in_log("monovo_cli.pipeline.batch"):  # each failure's warning
+    # each failure's warning, above the bar, with the flags put in
+    with progress_bar(verbosity.quiet, "seq") as bar, flags_in_log("monovo_cli.pipeline.batch"):
         s = run_batch(root, out, job, pattern=pattern, workers=workers,
                       scheduler=scheduler, dask=use_dask, resume=resume, overwrite=overwrite,
                       log_level=log_level(verbosity), progress=bar)

@@ -1,12 +1,14 @@
 """The ``monovo`` group: -q/-v, library errors to exit statuses, logging, signals, progress.
 
 Exit status (docs/guide.md "Commands"): 0 success; 2 bad usage or bad input (one line on
-stderr, no traceback); 1 internal error; 130 on Ctrl-C, 143 on SIGTERM (what was done is
-kept on disk).
+stderr, its traceback only with -vv); 1 internal error (its traceback with -v); 3 the data
+defeated the tracker (more than half of the frames lost); 130 on Ctrl-C, 143 on SIGTERM
+(what was done is kept).
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import functools
 import logging
@@ -108,7 +110,7 @@ class MonovoGroup(click.Group):
         try:
             return super().invoke(ctx)
         except MonovoError as exc:
-            if _verbose(ctx):
+            if _verbose(ctx) >= 2:
                 log.exception("details")
             raise BadInput(with_flags(str(exc))) from None
         except (click.ClickException, click.exceptions.Exit, click.exceptions.Abort):
@@ -128,7 +130,7 @@ class MonovoGroup(click.Group):
         except OSError as exc:
             if exc.errno not in _ENVIRONMENT_ERRNOS:
                 _internal_error(ctx, exc)
-            if _verbose(ctx):
+            if _verbose(ctx) >= 2:
                 log.exception("details")
             # A full disk, a read-only or failing device: the outputs cannot be written,
             # which the user can fix (exit 2), not a bug. No file name: a stream (motion.csv
@@ -143,9 +145,10 @@ class MonovoGroup(click.Group):
             _internal_error(ctx, exc)
 
 
-def _verbose(ctx: click.Context) -> bool:
+def _verbose(ctx: click.Context) -> int:
+    """How many -v were given (0 when none)."""
     verbosity = ctx.find_object(Verbosity)
-    return verbosity is not None and verbosity.verbose
+    return verbosity.verbose if verbosity is not None else 0
 
 
 def _internal_error(ctx: click.Context, exc: Exception) -> NoReturn:
@@ -169,9 +172,10 @@ def _silence_stdout() -> None:
 
 
 def log_level(verbosity: Verbosity) -> int:
-    """The ``monovo_cli`` loggers' level: DEBUG with -v, ERROR with -q, else WARNING."""
+    """The ``monovo_cli`` loggers' level: INFO with -v, DEBUG with -vv, ERROR with -q, else
+    WARNING."""
     if verbosity.verbose:
-        return logging.DEBUG
+        return logging.DEBUG if verbosity.verbose >= 2 else logging.INFO
     return logging.ERROR if verbosity.quiet else logging.WARNING
 
 
@@ -224,10 +228,18 @@ class _Progress:
 @contextmanager
 def progress_bar(quiet: bool, unit: str) -> Iterator[_Progress]:
     """A ``progress(done, total)`` callback drawing a tqdm bar of ``unit`` on stderr (none
-    when ``quiet``), closed on the way out whatever happens."""
+    when ``quiet``), closed on the way out whatever happens; the library's log lines (-v)
+    are written above the bar, not through it."""
     bar = _Progress(quiet, unit)
+    if quiet:
+        redirect = contextlib.nullcontext()
+    else:
+        from tqdm.contrib.logging import logging_redirect_tqdm
+
+        redirect = logging_redirect_tqdm()
     try:
-        yield bar
+        with redirect:
+            yield bar
     finally:
         bar.close()
 

@@ -214,6 +214,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
             if progress is not None:
                 progress(tracking.done, len(frames))
         run = tracking.result(time.perf_counter() - t0)
+        log.info("tracked %d frames in %.2f s (%.1f frames/s)", run.frames, run.seconds,
+                 run.fps)
     finally:
         with _signals_held():
             write_trajectory(run.trajectory if run is not None else tracking.trajectory())
@@ -222,10 +224,13 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
             if cov_writer is not None:
                 cov_writer.close()
     if out_dir is not None:
+        t1 = time.perf_counter()
         name = sequence_name(frames.dir)
         write_trajectory_plot(Path(out_dir), cfg.plane, run, gt_poses, name)
         if tracking.terrain is not None:
             write_terrain(Path(out_dir), tracking.terrain, run.trajectory, tracking.drive, name)
+        log.info("trajectory.png%s written in %.2f s", " and the terrain products"
+                 if tracking.terrain is not None else "", time.perf_counter() - t1)
     return run
 
 

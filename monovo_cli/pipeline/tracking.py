@@ -31,6 +31,7 @@ from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.run import RunRecorder, TrackRun
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import InputError, TrackingError
+from monovo_cli.geometry.plane import Plane, pitch_roll_deg
 from monovo_cli.io.config import InitConfig, check_frame_size, load_init
 from monovo_cli.io.sources import Frame, FrameSource, find_init_yaml, open_frames, resolve_sequence
 from monovo_cli.mapping.smoothing import SmoothedDrive, smooth_drive
@@ -137,6 +138,8 @@ class Tracking:
 
         def on_keyframe(key: Keyframe) -> None:
             self._recorder.add_keyframe(key)
+            log.info("frame %d: keyframe of %d observation points; its ground %s", key.index,
+                     len(key.levels[0].points), _ground_words(key.plane))
             if self.terrain is not None:
                 self.terrain.add(key, self._last_image)
 
@@ -179,6 +182,11 @@ class Tracking:
         with one_blas_thread():
             self.drive = (smooth_drive(rec.index, W, [(k.index, k) for k in rec.keyframes])
                           if self.smooth and len(rec) else None)
+            if self.drive is not None and self.drive.key_index:
+                log.info("the ground at frame %d as the whole drive measured it: %s; "
+                         "init.yaml gave %s", self.drive.key_index[0],
+                         _ground_words(self.drive.planes[0]),
+                         _ground_words(self.seq.config.plane))
             if self.terrain is not None and len(rec):
                 last_lost = rec.last_status == FrameStatus.LOST
                 self.terrain.finish(None if last_lost else self._last_image, W[-1])
@@ -212,6 +220,12 @@ class Tracking:
             else:
                 self._last_image = frame.image
                 yield frame.index, frame.timestamp, frame.image
+
+
+def _ground_words(plane: Plane) -> str:
+    """A plane in its camera as a log line says it: the camera's pitch and roll, its height."""
+    pitch, roll = pitch_roll_deg(plane.normal)
+    return f"pitch {pitch:.2f} deg, roll {roll:.2f} deg, {plane.distance:.3f} m below the camera"
 
 
 def _chain(first: FrameResult, rest: Iterator[FrameResult]) -> Iterator[FrameResult]:

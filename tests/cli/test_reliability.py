@@ -212,12 +212,15 @@ def test_internal_error_traceback_only_with_verbose(base_seq, tmp_path, verbose)
             "Error: internal error: RuntimeError: simulated fault (run with -v for the traceback)"]
 
 
-def test_bad_input_traceback_only_with_verbose(base_seq, tmp_path):
+def test_bad_input_traceback_only_with_vv(base_seq, tmp_path):
+    """A user error is one line, with -v too; -vv adds its traceback for debugging."""
     args = [sys.executable, "-m", "monovo_cli", "track", str(tmp_path / "nope"), "-o",
             str(tmp_path / "o")]
     quiet = subprocess.run(args, capture_output=True, text=True, timeout=120)
-    loud = subprocess.run(args + ["-v"], capture_output=True, text=True, timeout=120)
-    assert quiet.returncode == loud.returncode == 2
+    verbose = subprocess.run(args + ["-v"], capture_output=True, text=True, timeout=120)
+    loud = subprocess.run(args + ["-vv"], capture_output=True, text=True, timeout=120)
+    assert quiet.returncode == verbose.returncode == loud.returncode == 2
+    assert verbose.stderr == quiet.stderr and len(quiet.stderr.strip().splitlines()) == 1
     assert "Traceback" not in quiet.stderr and "Traceback" in loud.stderr
     assert quiet.stderr.strip().splitlines()[-1] == loud.stderr.strip().splitlines()[-1]
 
