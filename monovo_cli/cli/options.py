@@ -34,7 +34,7 @@ class Verbosity:
 def _set_verbosity(ctx: click.Context, param: click.Parameter, value: bool | int) -> None:
     verbosity = ctx.ensure_object(Verbosity)  # on the group's context when it parses first
     if param.name == "verbose":
-        verbosity.verbose += int(value)
+        verbosity.verbose += int(value or 0)
     elif value:
         verbosity.quiet = True
 
@@ -43,7 +43,7 @@ def verbosity_options(f):
     """-q/--quiet and -v/--verbose, on the group and on every command (see :class:`Verbosity`)."""
     f = click.option("-q", "--quiet", is_flag=True, expose_value=False, callback=_set_verbosity,
                      help="No progress bar, no summary.")(f)
-    return click.option("-v", "--verbose", count=True, expose_value=False,
+    return click.option("-v", "--verbose", count=True, default=None, expose_value=False,
                         callback=_set_verbosity,
                         help="Say what the run does (keyframes, the ground measured, timing) "
                              "and show an internal error's traceback; -vv also debug logging "

@@ -40,6 +40,10 @@ from monovo_cli.pipeline.threads import each_on_one_blas_thread, one_blas_thread
 
 log = logging.getLogger(__name__)
 
+# What a bad frame's message suggests (the command line names the flags: cli.group.FLAG_WORDS)
+_RERUN = "rerun recording unreadable frames as lost"
+_RERUN_REPLACING = "rerun recording unreadable frames as lost and replacing these outputs"
+
 
 @dataclass(frozen=True)
 class OpenedSequence:
@@ -208,9 +212,7 @@ class Tracking:
                 frame = frames.read(index)
             except InputError as exc:
                 if not self._skip_bad_frames:
-                    rerun = ("rerun recording unreadable frames as lost and replacing these "
-                             "outputs" if self._rerun_replaces else
-                             "rerun recording unreadable frames as lost")
+                    rerun = _RERUN_REPLACING if self._rerun_replaces else _RERUN
                     raise InputError(f"{exc}; tracking stopped at frame {index} "
                                      f"({self._stopped(index)}); replace the file, or "
                                      f"{rerun}") from None
