@@ -55,12 +55,17 @@ edit the table by hand. tests/cli/test_reliability.py runs the same cases. -->
 line on stderr, no traceback: `Error: <file>: <what is wrong>; <what would fix it>` |
 | 1 | internal error (a bug): one line, `Error: internal error: <type>: <message> (run with \
 -v for the traceback)` |
-| 130 | interrupted (Ctrl-C, SIGINT); the frames done are on disk |
-| 143 | terminated (SIGTERM); the frames done are on disk |
+| 3 | the run went to the end, but the data defeated the tracker: `monovo track` lost more \
+than half of the frames, or a `monovo batch` sequence did (and none failed on bad input or \
+an internal error); the outputs are kept and one line on stderr says so |
+| 130 | interrupted (Ctrl-C, SIGINT); the frames done are on disk (with `-o -`, their rows went \
+to stdout and no file is written) |
+| 143 | terminated (SIGTERM); as for 130 |
 | 141 | the reader of `-o -` went away (e.g. `monovo track ... -o - \\| head`): monovo stops \
 quietly, like a filter killed by SIGPIPE |
 
-`-v` adds the traceback to any error (status 2 or 1). Usage errors (an unknown option, a
+`-v` adds the traceback to an internal error (status 1), `-vv` to any error (a bad
+input stays one line with `-v`). Usage errors (an unknown option, a
 value out of range) are reported by click: the same single `Error:` line, preceded by the
 command's `Usage:` line and a `Try 'monovo ... -h'` hint.
 
@@ -91,7 +96,9 @@ already streamed stay on stdout, which only ever holds CSV.
 `--skip-bad-frames` instead records such a frame as `lost` and goes on: its row carries
 the constant-velocity prediction (the last good frame's motion repeated), `iterations`
 and `points` 0 and empty standard deviations, and a warning naming the file goes to
-stderr. Frame 0 cannot be skipped: it carries the ground model.
+stderr. Frame 0 cannot be skipped: it carries the ground model. The error line names the
+rerun that works: `--skip-bad-frames --overwrite` into an output folder (the rerun tracks
+from frame 0 again and replaces the rows kept), `--skip-bad-frames` alone with `-o -`.
 
 ## Interruptions
 

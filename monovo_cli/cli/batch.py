@@ -6,7 +6,14 @@ from pathlib import Path
 
 import click
 
-from monovo_cli.cli.group import BadInput, common, log_level, progress_bar, with_flags
+from monovo_cli.cli.group import (
+    BadInput,
+    common,
+    flags_in_log,
+    log_level,
+    progress_bar,
+    with_flags,
+)
 from monovo_cli.cli.options import (
     LOOP,
     given,
@@ -37,8 +44,8 @@ from monovo_cli.cli.options import (
 @click.option("--dask", "use_dask", is_flag=True,
               help="Run on a local Dask cluster of --workers processes.")
 @click.option("--resume", is_flag=True,
-              help="Skip the sequences whose outputs are complete (done.json checks out); "
-                   "redo the others.")
+              help="Skip the sequences whose outputs are complete and succeeded (done.json "
+                   "checks out); redo the others, failed ones included.")
 @overwrite_option("Redo every sequence, replacing its outputs.")
 @skip_bad_frames_option("the sequence fails")
 @topic_option
@@ -56,14 +63,14 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
     OUTROOT/summary.csv has a row per sequence (status ok / skipped / failed).
     A failed sequence never stops the others. --prior and --covariance name a file
     inside each sequence folder / output folder; --mask is one PNG for all.
-    Exit status: 0 all done; 2 some sequences had bad input (after finishing the
-    rest); 1 some failed on an internal error or a lost worker.
+    Exit status (after finishing the rest): 0 all done; 1 some failed on an internal
+    error or a lost worker; else 2 some had bad input; else 3 some lost more than half
+    of their frames (outputs kept). --resume skips only the sequences done with success
+    and tracks the failed ones again, so a rerun gives the same status.
       monovo batch archive -o results --workers 2
       monovo batch archive -o results --resume
       monovo batch archive -o results --scheduler tcp://head:8786
     """
-    import contextlib
-
     from monovo_cli.pipeline.batch import run_batch
     from monovo_cli.pipeline.batch_job import JobOptions
 
@@ -74,13 +81,8 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
                      prior=str(prior) if prior else None,
                      covariance=str(covariance) if covariance else None,
                      skip_bad_frames=skip_bad_frames, topic=topic, **given(smooth=smooth))
-    if verbosity.quiet:
-        redirect = contextlib.nullcontext()
-    else:  # warnings about failed sequences above the bar, not through it
-        from tqdm.contrib.logging import logging_redirect_tqdm
-
-        redirect = logging_redirect_tqdm()
-    with progress_bar(verbosity.quiet, "seq") as bar, redirect:
+    # each failure's warning, above the bar, with the flags put in
+    with progress_bar(verbosity.quiet, "seq") as bar, flags_in_log("monovo_cli.pipeline.batch"):
         s = run_batch(root, out, job, pattern=pattern, workers=workers,
                       scheduler=scheduler, dask=use_dask, resume=resume, overwrite=overwrite,
                       log_level=log_level(verbosity), progress=bar)
@@ -95,9 +97,14 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
                 click.echo(f"{r['sequence']}:\n{r['traceback']}", err=True)
     if failed:
         first = failed[0]
-        msg = with_flags(f"{len(failed)} of {n} sequence(s) failed, first {first['sequence']}: "
-                         f"{first['error']} (all in {s.summary_path})")
+        # Without -q each failure's error was logged above as it came: not again here.
+        error = f": {first['error']}" if verbosity.quiet else " (its error above)"
+        msg = with_flags(f"{len(failed)} of {n} sequence(s) failed, first {first['sequence']}"
+                         f"{error} (all in {s.summary_path})")
         if s.internal_errors:
             click.echo(f"Error: {msg}", err=True)
             raise click.exceptions.Exit(1)
-        raise BadInput(msg)
+        if s.input_errors:
+            raise BadInput(msg)
+        click.echo(f"monovo: {msg}", err=True)  # outputs kept, as monovo track's status 3
+        raise click.exceptions.Exit(3)

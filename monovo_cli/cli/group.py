@@ -1,12 +1,14 @@
 """The ``monovo`` group: -q/-v, library errors to exit statuses, logging, signals, progress.
 
 Exit status (docs/guide.md "Commands"): 0 success; 2 bad usage or bad input (one line on
-stderr, no traceback); 1 internal error; 130 on Ctrl-C, 143 on SIGTERM (what was done is
-kept on disk).
+stderr, its traceback only with -vv); 1 internal error (its traceback with -v); 3 the data
+defeated the tracker (more than half of the frames lost); 130 on Ctrl-C, 143 on SIGTERM
+(what was done is kept).
 """
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import functools
 import logging
@@ -36,7 +38,26 @@ FLAG_WORDS = (
     ("(a tracking run writes one with its terrain products)",  # io.terrain
      "(written by 'monovo track SEQ -o DIR --terrain-out')"),
     ("name one as the image topic", "name one with --topic"),  # io.sources.bag
+    ("rerun recording unreadable frames as lost and replacing these outputs",  # pipeline.tracking
+     "rerun with --skip-bad-frames --overwrite to record bad frames as lost and go on"),
+    ("rerun recording unreadable frames as lost",  # pipeline.tracking, with -o -
+     "rerun with --skip-bad-frames to record bad frames as lost and go on"),
 )
+
+
+#: The key of ``click.Context.meta`` under which a command says what an interruption keeps
+#: (:func:`kept_on_interrupt`); the default is files on disk.
+KEPT_ON_INTERRUPT = "monovo.kept_on_interrupt"
+
+
+def kept_on_interrupt(what: str) -> None:
+    """Say, in the message of an interruption of the running command, what it keeps
+    (``what``: e.g. "the rows of the frames done went to stdout")."""
+    click.get_current_context().meta[KEPT_ON_INTERRUPT] = what
+
+
+def _kept(ctx: click.Context) -> str:
+    return ctx.meta.get(KEPT_ON_INTERRUPT, "the frames done so far are on disk")
 
 
 def with_flags(text: str) -> str:
@@ -45,6 +66,26 @@ def with_flags(text: str) -> str:
     for library, command_line in FLAG_WORDS:
         text = text.replace(library, command_line)
     return text
+
+
+class _FlagWords(logging.Filter):
+    """Puts the flags into a library log record's message (:func:`with_flags`)."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        record.msg, record.args = with_flags(record.getMessage()), None
+        return True
+
+
+@contextmanager
+def flags_in_log(name: str) -> Iterator[None]:
+    """While in the block, the records of the library logger ``name`` name settings by their
+    command-line flags (:func:`with_flags`), as the command's own error line does."""
+    logger, words = logging.getLogger(name), _FlagWords()
+    logger.addFilter(words)
+    try:
+        yield
+    finally:
+        logger.removeFilter(words)
 
 
 class Terminated(BaseException):
@@ -69,16 +110,16 @@ class MonovoGroup(click.Group):
         try:
             return super().invoke(ctx)
         except MonovoError as exc:
-            if _verbose(ctx):
+            if _verbose(ctx) >= 2:
                 log.exception("details")
             raise BadInput(with_flags(str(exc))) from None
         except (click.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
         except KeyboardInterrupt:
-            click.echo("monovo: interrupted; the frames done so far are on disk", err=True)
+            click.echo(f"monovo: interrupted; {_kept(ctx)}", err=True)
             sys.exit(130)
         except Terminated:
-            click.echo("monovo: terminated; the frames done so far are on disk", err=True)
+            click.echo(f"monovo: terminated; {_kept(ctx)}", err=True)
             sys.exit(143)
         except BrokenPipeError:
             # The reader of -o - went away (e.g. '| head'): stop quietly like any Unix
@@ -89,7 +130,7 @@ class MonovoGroup(click.Group):
         except OSError as exc:
             if exc.errno not in _ENVIRONMENT_ERRNOS:
                 _internal_error(ctx, exc)
-            if _verbose(ctx):
+            if _verbose(ctx) >= 2:
                 log.exception("details")
             # A full disk, a read-only or failing device: the outputs cannot be written,
             # which the user can fix (exit 2), not a bug. No file name: a stream (motion.csv
@@ -104,9 +145,10 @@ class MonovoGroup(click.Group):
             _internal_error(ctx, exc)
 
 
-def _verbose(ctx: click.Context) -> bool:
+def _verbose(ctx: click.Context) -> int:
+    """How many -v were given (0 when none)."""
     verbosity = ctx.find_object(Verbosity)
-    return verbosity is not None and verbosity.verbose
+    return verbosity.verbose if verbosity is not None else 0
 
 
 def _internal_error(ctx: click.Context, exc: Exception) -> NoReturn:
@@ -130,9 +172,10 @@ def _silence_stdout() -> None:
 
 
 def log_level(verbosity: Verbosity) -> int:
-    """The ``monovo_cli`` loggers' level: DEBUG with -v, ERROR with -q, else WARNING."""
+    """The ``monovo_cli`` loggers' level: INFO with -v, DEBUG with -vv, ERROR with -q, else
+    WARNING."""
     if verbosity.verbose:
-        return logging.DEBUG
+        return logging.DEBUG if verbosity.verbose >= 2 else logging.INFO
     return logging.ERROR if verbosity.quiet else logging.WARNING
 
 
@@ -185,10 +228,18 @@ class _Progress:
 @contextmanager
 def progress_bar(quiet: bool, unit: str) -> Iterator[_Progress]:
     """A ``progress(done, total)`` callback drawing a tqdm bar of ``unit`` on stderr (none
-    when ``quiet``), closed on the way out whatever happens."""
+    when ``quiet``), closed on the way out whatever happens; the library's log lines (-v)
+    are written above the bar, not through it."""
     bar = _Progress(quiet, unit)
+    if quiet:
+        redirect = contextlib.nullcontext()
+    else:
+        from tqdm.contrib.logging import logging_redirect_tqdm
+
+        redirect = logging_redirect_tqdm()
     try:
-        yield bar
+        with redirect:
+            yield bar
     finally:
         bar.close()
 

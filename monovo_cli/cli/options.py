@@ -28,21 +28,26 @@ class Verbosity:
     the command's context shares."""
 
     quiet: bool = False
-    verbose: bool = False
+    verbose: int = 0  # how many -v: 1 what the run does (INFO), 2 debugging (DEBUG)
 
 
-def _set_verbosity(ctx: click.Context, param: click.Parameter, value: bool) -> None:
+def _set_verbosity(ctx: click.Context, param: click.Parameter, value: bool | int) -> None:
     verbosity = ctx.ensure_object(Verbosity)  # on the group's context when it parses first
-    if value:
-        setattr(verbosity, param.name, True)
+    if param.name == "verbose":
+        verbosity.verbose += int(value or 0)
+    elif value:
+        verbosity.quiet = True
 
 
 def verbosity_options(f):
     """-q/--quiet and -v/--verbose, on the group and on every command (see :class:`Verbosity`)."""
     f = click.option("-q", "--quiet", is_flag=True, expose_value=False, callback=_set_verbosity,
                      help="No progress bar, no summary.")(f)
-    return click.option("-v", "--verbose", is_flag=True, expose_value=False,
-                        callback=_set_verbosity, help="Debug logging and tracebacks.")(f)
+    return click.option("-v", "--verbose", count=True, default=None, expose_value=False,
+                        callback=_set_verbosity,
+                        help="Say what the run does (keyframes, the ground measured, timing) "
+                             "and show an internal error's traceback; -vv also debug logging "
+                             "and the traceback of any error.")(f)
 
 
 class BadInput(click.ClickException):

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from monovo_cli.cli.group import common, progress_bar
+from monovo_cli.cli.group import common, kept_on_interrupt, progress_bar
 from monovo_cli.cli.options import (
     LOOP,
     LibraryDefault,
@@ -60,10 +60,12 @@ def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, ski
     from monovo_cli.pipeline.track import track_sequence
 
     to_stdout = out == "-"
-    if terrain_out and to_stdout:
+    if to_stdout and (terrain_out or groundtruth is not None):
         from monovo_cli.errors import InputError
 
-        raise InputError("--terrain-out writes files: give an output directory (-o DIR), not -o -")
+        why = ("--terrain-out writes files" if terrain_out else
+               "--groundtruth is drawn beside the estimate in trajectory.png, a file")
+        raise InputError(f"{why}: give an output directory (-o DIR), not -o -")
     if resume and (to_stdout or overwrite):
         from monovo_cli.errors import InputError
 
@@ -71,6 +73,9 @@ def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, ski
                          "not -o -" if to_stdout else
                          "--resume continues the run in -o DIR, --overwrite starts it afresh: "
                          "give one of them")
+    if to_stdout:
+        kept_on_interrupt("the rows of the frames done so far went to stdout; no file was "
+                          "written")
     with progress_bar(verbosity.quiet, "frame") as bar:
         s = track_sequence(seq, params, None if to_stdout else Path(out), options,
                            groundtruth=groundtruth, mask=mask, prior=prior, covariance=covariance,

@@ -88,7 +88,13 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
                             max_points=max((budget if lv == 0 else coarse) // (4 ** lv), 200),
                             mask=m, spline=lv == 0 and spline)
         if lv == 0:
-            require_points(pts, minimum=options.min_points, threshold=threshold)
+            textured = None
+            if len(pts) < options.min_points:  # would any threshold give enough?
+                textured = len(select_points(pyr[lv], cam, plane, corners, level=lv,
+                                             threshold=0.0, max_points=options.min_points,
+                                             mask=m))
+            require_points(pts, minimum=options.min_points, threshold=threshold,
+                           textured=textured)
             if surface is not None:
                 terrain_grid = surface(pts.X)
         if terrain_grid is not None:

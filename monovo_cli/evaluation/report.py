@@ -4,15 +4,27 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 from monovo_cli.evaluation.metrics import Evaluation
 
 
+def _one_notation(values) -> Callable[[float], str]:
+    """The format of every number of one table: fixed-point with at least 5 decimals and
+    enough for 3 significant digits of its smallest non-zero value, or scientific for all
+    when that would take more than 9 decimals -- so a mean and a std side by side always
+    read alike."""
+    small = min((abs(float(v)) for v in values if v != 0 and math.isfinite(v)), default=1.0)
+    decimals = max(5, 2 - math.floor(math.log10(small)))
+    if decimals > 9:
+        return lambda x: f"{x:.3e}"
+    return lambda x: f"{x:.{decimals}f}"
+
+
 def format_report(ev: Evaluation) -> str:
     """``ev`` as text: the paper-style tables (Tables 10.1 / 10.2, per-axis mean and std of
-    the relative-motion errors, m and deg) and the trajectory measures, one per line."""
-    def g(x: float) -> str:
-        return f"{x:.5f}" if abs(x) >= 1e-5 or x == 0 else f"{x:.3e}"
+    the relative-motion errors, m and deg; every number of a table in one notation) and the
+    trajectory measures, one per line."""
 
     lines = [f"{ev.poses} poses matched within {ev.max_dt:g} s (of {ev.estimate_poses} "
              f"estimated, {ev.groundtruth_poses} true), {max(ev.poses - 1, 0)} relative "
@@ -26,6 +38,8 @@ def format_report(ev: Evaluation) -> str:
     for title, unit, axes, first in (("translation (Table 10.1)", "m", "TxTyTz", 0),
                                      ("rotation (Table 10.2)", "deg", "wxwywz", 3)):
         part = slice(first, first + 3)
+        g = _one_notation([*ev.relative_mean[part], *ev.relative_std[part],
+                           ev.relative_mean[part].mean(), ev.relative_std[part].mean()])
         lines += [f"Absolute relative-motion error, {title}",
                   f"  {'axis':<10}{f'mean ({unit})':>14}{f'std ({unit})':>14}"]
         for i in range(3):

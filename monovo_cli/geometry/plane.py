@@ -77,6 +77,15 @@ def normal_from_pitch_roll(pitch_deg: float, roll_deg: float = 0.0) -> np.ndarra
     return np.array([math.sin(r) * math.cos(p), math.cos(r) * math.cos(p), math.sin(p)])
 
 
+def pitch_roll_deg(normal: np.ndarray) -> tuple[float, float]:
+    """The pitch and roll (degrees) of the camera that sees the ground of unit ``normal``
+    (3,): the inverse of :func:`normal_from_pitch_roll`, ``p = asin(n_z)``,
+    ``r = atan2(n_x, n_y)``."""
+    n = np.asarray(normal, float)
+    return (math.degrees(math.asin(max(-1.0, min(1.0, float(n[2]))))),
+            math.degrees(math.atan2(float(n[0]), float(n[1]))))
+
+
 def tangent_basis(n: np.ndarray) -> np.ndarray:
     """(3, 2): two orthonormal vectors orthogonal to the unit vector ``n`` (a fixed choice),
     ``e1 x e2 = n``."""

@@ -19,7 +19,11 @@ and ``camera_file:`` may name a PDS3/PDS4 product (``.IMG``, ``.LBL``, ``.xml``)
 holds the model (its image gives the size). monovo converts the model to a pinhole camera
 with OpenCV distortion (:func:`monovo_cli.geometry.cahvor.fit_pinhole`) and logs the
 reprojection error of the conversion; above :data:`MAX_RMS_PX` the model is refused (a
-fish-eye lens has no pinhole equivalent), above :data:`WARN_RMS_PX` a warning says so. The
+fish-eye lens has no pinhole equivalent), above :data:`WARN_RMS_PX` a warning says so. A
+fitted distortion term that moves no pixel of the image by more than
+:data:`NEGLIGIBLE_DISTORTION_PX` is set to exactly zero (:func:`without_negligible_distortion`):
+a CAHV, or a CAHVOR that is exactly a pinhole, becomes the pinhole camera itself and takes
+its computations, not the distortion's. The
 ground plane of init.yaml is then given in the camera frame derived from the model
 (:mod:`monovo_cli.geometry.cahvor`: z = A, x = H across A).
 """
@@ -46,6 +50,8 @@ MAX_IMAGE_SIDE = 100_000
 MAX_RMS_PX = 1.0
 #: ... and those above this one are warned about.
 WARN_RMS_PX = 0.05
+#: px: a distortion term whose largest displacement over the image is below this is zero.
+NEGLIGIBLE_DISTORTION_PX = 1e-6
 
 
 def _fail(name: str, message: str) -> ConfigError:
@@ -87,6 +93,24 @@ def _vector(name: str, where: str, value: Any) -> list[float]:
     return [_number(name, f"{where}[{i}]", v) for i, v in enumerate(value)]
 
 
+def without_negligible_distortion(cam: PinholeCamera) -> PinholeCamera:
+    """``cam`` with each distortion term (OpenCV ``k1 k2 p1 p2 k3``) whose largest
+    displacement alone over the image (px, bounded at its farthest corner from the
+    principal point) is at most :data:`NEGLIGIBLE_DISTORTION_PX` set to exactly zero."""
+    corners = np.array([[0.0, 0.0], [cam.width - 1.0, 0.0], [0.0, cam.height - 1.0],
+                        [cam.width - 1.0, cam.height - 1.0]])
+    r = float(np.max(np.hypot((corners[:, 0] - cam.cx) / cam.fx,
+                              (corners[:, 1] - cam.cy) / cam.fy)))
+    f = max(abs(cam.fx), abs(cam.fy))
+    # |displacement| per unit of each term at radius r: r^3, r^5, sqrt(10) r^2 (twice), r^7
+    reach = (r ** 3, r ** 5, 3.2 * r * r, 3.2 * r * r, r ** 7)
+    terms = tuple(0.0 if abs(c) * f * g <= NEGLIGIBLE_DISTORTION_PX else float(c)
+                  for c, g in zip(cam.distortion, reach))
+    if terms == tuple(cam.distortion):
+        return cam
+    return PinholeCamera(cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy, terms)
+
+
 def to_pinhole(name: str, model: CahvorModel, width: int, height: int) -> PinholeCamera:
     """``model`` as a pinhole camera of ``width`` x ``height`` px (module docstring);
     ConfigError (naming ``name``) if it has none within :data:`MAX_RMS_PX`."""
@@ -95,7 +119,7 @@ def to_pinhole(name: str, model: CahvorModel, width: int, height: int) -> Pinhol
         fit = fit_pinhole(model, width, height)
     except ValueError as exc:
         raise _fail(name, f"the {kind} camera model cannot be used: {exc}") from None
-    cam = fit.camera
+    cam = without_negligible_distortion(fit.camera)
     if not (fit.rms_px <= MAX_RMS_PX):
         raise _fail(name, f"the {kind} camera model has no pinhole + OpenCV distortion "
                           f"equivalent: RMS reprojection error {fit.rms_px:.3g} px (max "

@@ -30,7 +30,9 @@ first frames corrected it to, smoothed): origin at the foot of camera 0 on the p
 ``forward`` camera 0's optical axis projected onto it, ``right = normal x forward``,
 ``up = -normal`` (heights above the plane, m), the axes of ``trajectory.png``.
 :meth:`TerrainMap.height_grid` bins the points into square cells of the driven strip: a
-cell's height is the mean of its points'.
+cell's height is the mean of its points'. :func:`heights_off_best_plane` measures the same
+cells from the best-fit plane of the mapped points instead (the relief alone, as
+heightmap.png draws it).
 
 Pure: no I/O (the files are written by :mod:`monovo_cli.io.terrain`).
 """
@@ -80,6 +82,36 @@ class HeightGrid:
     cell: float
     height: np.ndarray
     count: np.ndarray
+
+
+def heights_off_best_plane(grid: HeightGrid) -> HeightGrid:
+    """``grid`` with each cell's height taken from the best-fit plane of the mapped points
+    instead of the ground frame's plane: the least-squares plane ``h = a * right +
+    b * forward + c`` through the cells' centres and heights, each cell weighted by its
+    point count (the points' own least-squares plane, up to their spread within a cell).
+
+    Frame 0's local ground is tilted against the terrain as a whole wherever frame 0 stands
+    on a slope or a swell; measured from it, rolling terrain shows as a ramp. Measured from
+    the best-fit plane, the heights are the relief alone (m, NaN cells stay NaN). A grid
+    with fewer than three filled cells, or whose cells lie on one line, is returned with
+    its mean height removed only.
+    """
+    ok = grid.count > 0
+    if not ok.any():
+        return grid
+    j, i = np.nonzero(ok)
+    x = grid.x0 + (i + 0.5) * grid.cell
+    y = grid.y0 + (j + 0.5) * grid.cell
+    h, w = grid.height[ok], np.sqrt(grid.count[ok].astype(float))
+    A = np.stack([x, y, np.ones_like(x)], axis=1)
+    if len(h) >= 3 and np.linalg.matrix_rank(A) == 3:
+        coef = np.linalg.lstsq(A * w[:, None], h * w, rcond=None)[0]
+    else:
+        coef = np.array([0.0, 0.0, np.average(h, weights=w * w)])
+    jj, ii = np.indices(grid.height.shape)
+    plane = coef[0] * (grid.x0 + (ii + 0.5) * grid.cell) + \
+        coef[1] * (grid.y0 + (jj + 0.5) * grid.cell) + coef[2]
+    return HeightGrid(grid.x0, grid.y0, grid.cell, grid.height - plane, grid.count)
 
 
 @dataclass(frozen=True)

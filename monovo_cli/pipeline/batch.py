@@ -1,17 +1,14 @@
 """``monovo batch``: track many sequences, on a local process pool or a Dask cluster.
 
-Tracking inside one sequence is sequential; sequences are independent, so an archive scales
-out over sequences. The per-sequence pieces live in :mod:`monovo_cli.pipeline.batch_job`
-(and are importable from here): ``find_sequences``, ``track_one`` (one sequence, a pure
-function of picklable arguments that returns a plain dict and never raises for a bad sequence:
-the thing to hand to ``dask.distributed``'s ``client.submit``, Ray's ``ray.remote`` or any
-other engine), ``is_complete`` (the ``done.json`` marker) and ``write_summary``. This module
-schedules them: :func:`run_batch` runs every sequence on a local ``ProcessPoolExecutor``
-(default) or a Dask cluster (the optional ``monovo[dask]`` extra, imported only when asked
-for), with ``resume`` skipping finished ones, and keeps ``summary.csv`` up to date.
+Sequences are independent, so an archive scales out over them. The per-sequence pieces live
+in :mod:`monovo_cli.pipeline.batch_job` (``find_sequences``, ``track_one``: one sequence, a
+pure function of picklable arguments returning a plain dict, for any engine;
+``is_complete``; ``write_summary``). :func:`run_batch` schedules them on a local
+``ProcessPoolExecutor`` (default) or a Dask cluster (the ``monovo[dask]`` extra, imported
+only when asked for), ``resume`` skipping finished ones, and keeps ``summary.csv`` current.
 
-This module imports only the standard library at import time, so that a freshly spawned
-worker can limit OpenCV/BLAS/OpenMP to one thread before numpy and OpenCV are loaded.
+Only the standard library is imported at import time, so that a freshly spawned worker can
+limit OpenCV/BLAS/OpenMP to one thread before numpy and OpenCV are loaded.
 """
 
 from __future__ import annotations
@@ -41,6 +38,7 @@ from monovo_cli.pipeline.batch_job import (
     find_sequences,
     is_complete,
     limit_threads,
+    recorded_failure,
     result,
     sequence_name,
     track_one,
@@ -246,8 +244,6 @@ def _run_dask_client(distributed, what, jobs, scheduler, workers, task, options,
             cluster.close()
 
 
-# --------------------------------------------------------------------------- the batch
-
 
 @dataclass
 class BatchSummary:
@@ -271,13 +267,18 @@ class BatchSummary:
 
     @property
     def internal_errors(self) -> list[dict[str, Any]]:
-        """The failures that were not bad input (internal errors, lost frames, lost workers)."""
-        return [r for r in self.failed if r.get("error_kind") != "input"]
+        """The failures that are monovo's fault: internal errors and lost workers (not bad
+        input, not sequences tracked to the end with most of their frames lost)."""
+        return [r for r in self.failed if r.get("error_kind") not in ("input", "lost")]
+
+    @property
+    def input_errors(self) -> list[dict[str, Any]]:
+        """The failures on bad input (a file to fix)."""
+        return [r for r in self.failed if r.get("error_kind") == "input"]
 
 
 def _existing_results(out_dir: Path) -> bool:
-    from monovo_cli.pipeline.track import RESULT_FILES
-
+    from monovo_cli.pipeline.track import RESULT_FILES  # (not at import: it loads numpy)
     return any((out_dir / n).exists() for n in (*RESULT_FILES, DONE_FILE))
 
 
@@ -298,10 +299,12 @@ def run_batch(root: str | Path, out_root: str | Path, options: JobOptions | None
     (``dask``), or on the Dask scheduler at ``scheduler`` (``tcp://HOST:PORT``; its workers
     must see ``root`` and ``out_root`` at the same paths and have monovo installed).
 
-    ``resume``: skip the sequences whose outputs are complete (:func:`is_complete`) and redo
-    the others; ``overwrite``: redo all. Without either, an output folder that already holds
-    results is an OutputError before anything runs. A sequence that fails is recorded and
-    the others go on. ``out_root/summary.csv`` (:func:`write_summary`) is rewritten
+    ``resume``: skip the sequences whose outputs are complete (:func:`is_complete`) and
+    recorded as a success, and redo the others -- a sequence that failed (more than half of
+    its frames lost, :func:`recorded_failure`) is tracked again, so it is reported failed
+    with its reason until it succeeds; ``overwrite``: redo all. Without either, an output
+    folder that already holds results is an OutputError before anything runs. A sequence
+    that fails is recorded and the others go on. ``out_root/summary.csv`` (:func:`write_summary`) is rewritten
     atomically at least every ``summary_every_s`` seconds while results come in, at the
     end, and when the batch is interrupted (unfinished sequences ``pending``); at the end (or
     the interruption) ``out_root/index.html`` too, every sequence's report.html linked, the
@@ -342,8 +345,11 @@ def run_batch(root: str | Path, out_root: str | Path, options: JobOptions | None
         res = result(seq_dir, out_dir, status="pending", worker="")
         if resume:
             complete, why = is_complete(seq_dir, out_dir, opts)
-            if complete:
+            failure = recorded_failure(out_dir) if complete else None
+            if complete and failure is None:
                 res = done_result(seq_dir, out_dir)
+            elif failure is not None:
+                log.info("%s: redone (it failed: %s)", name, failure)
             elif _existing_results(out_dir):
                 log.info("%s: redone (%s)", name, why)
         elif not overwrite and _existing_results(out_dir):

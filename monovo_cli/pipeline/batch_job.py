@@ -235,12 +235,14 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: JobOptions | No
     ``single_thread``: run OpenCV on one thread (see :func:`limit_threads`).
 
     Writes motion.csv, trajectory.csv, trajectory.tum and trajectory.png, then, last,
-    ``done.json`` (what :func:`is_complete` checks). Returns a JSON-able dict: ``status``
-    ``"ok"`` with ``frames``, ``fps``, ``mean_msd`` (grey levels^2), ``lost``, ``reanchored``,
-    ``distance_m``, ``seconds``; or ``"failed"`` with ``error`` (one line) and
-    ``error_kind`` ``"input"`` (a MonovoError: a file to fix) or ``"internal"`` (anything
-    else; ``traceback`` holds the details). KeyboardInterrupt and other BaseExceptions
-    propagate.
+    ``done.json`` (what :func:`is_complete` checks; it records the outcome, see
+    :func:`recorded_failure`). Returns a JSON-able dict: ``status`` ``"ok"`` with ``frames``,
+    ``fps``, ``mean_msd`` (grey levels^2), ``lost``, ``reanchored``, ``distance_m``,
+    ``seconds``; or ``"failed"`` with ``error`` (one line) and ``error_kind``: ``"lost"``
+    (tracked to the end, outputs and ``done.json`` written, but more than half of the frames
+    lost: the data defeated the tracker), ``"input"`` (a MonovoError: a file to fix) or
+    ``"internal"`` (anything else; ``traceback`` holds the details). KeyboardInterrupt and
+    other BaseExceptions propagate.
     """
     job = checked_job_options(options)
     seq_dir, out_dir = Path(seq_dir), Path(out_dir)
@@ -272,15 +274,17 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: JobOptions | No
         stats = {"frames": run.frames, "fps": run.fps, "mean_msd": run.mean_msd,
                  "lost": run.lost, "reanchored": run.reanchored,
                  "distance_m": run.path_length, "seconds": run.seconds}
+        outcome = {"status": "ok", "error": "", "error_kind": ""}
+        if run.mostly_lost:  # outputs kept, as monovo track's exit status 3
+            outcome = {"status": "failed", "error_kind": "lost",
+                       "error": f"{run.lost} of {run.frames - 1} frames lost (more than half)"}
         marker = {"format": DONE_FORMAT, "monovo": __version__, "frames": n_frames,
-                  "inputs_sha256": fingerprint, "options": asdict(job), "result": stats, "files": files}
+                  "inputs_sha256": fingerprint, "options": asdict(job), "result": stats,
+                  "outcome": outcome, "files": files}
         from monovo_cli.io.atomic import atomic_write_text
 
         atomic_write_text(done, json.dumps(marker, indent=1, sort_keys=True) + "\n")
-        if run.mostly_lost:  # outputs kept, as monovo track's exit status 3
-            return result(seq_dir, out_dir, error=f"{run.lost} of {run.frames - 1} "
-                          "frames lost (more than half)", error_kind="lost", **stats)
-        return result(seq_dir, out_dir, status="ok", **stats)
+        return result(seq_dir, out_dir, **outcome, **stats)
     except MonovoError as exc:
         log.debug("%s failed", seq_dir, exc_info=True)
         return result(seq_dir, out_dir, error=str(exc), error_kind="input",
@@ -331,6 +335,24 @@ def is_complete(seq_dir: str | Path, out_dir: str | Path,
     except (OSError, ValueError, KeyError, TypeError, AttributeError, MonovoError) as exc:
         return False, f"{DONE_FILE} or the inputs cannot be checked ({type(exc).__name__}: {exc})"
     return True, "complete"
+
+
+def recorded_failure(out_dir: str | Path) -> str | None:
+    """The error ``done.json`` in ``out_dir`` records for a sequence tracked to the end that
+    failed (more than half of its frames lost), or None when it records success.
+
+    A ``done.json`` written before outcomes were recorded says it through its figures: a
+    failure when more than half of the frames after the first were lost.
+    """
+    marker = json.loads((Path(out_dir) / DONE_FILE).read_text())
+    outcome = marker.get("outcome")
+    if outcome is not None:
+        return None if outcome["status"] == "ok" else outcome["error"]
+    stats = marker["result"]
+    lost, frames = stats["lost"], stats["frames"]
+    if lost > 0.5 * max(frames - 1, 0):
+        return f"{lost} of {frames - 1} frames lost (more than half)"
+    return None
 
 
 def done_result(seq_dir: Path, out_dir: Path) -> dict[str, Any]:

@@ -51,7 +51,7 @@ from monovo_cli.pipeline.preflight import (
     groundtruth_poses,
     model_keyframe,
 )
-from monovo_cli.pipeline.products import write_terrain, write_trajectory_plot
+from monovo_cli.pipeline.products import sequence_name, write_terrain, write_trajectory_plot
 from monovo_cli.pipeline.report import THUMBNAIL_SIDE, THUMBNAILS, write_report
 from monovo_cli.pipeline.threads import one_blas_thread
 from monovo_cli.pipeline.tracking import Tracking, naming, open_sequence, read_mask, read_prior
@@ -223,7 +223,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                         skip_bad_frames=skip_bad_frames, smooth=smooth,
                         terrain=terrain_out and out_dir is not None, stopped=stopped,
                         thumbnails=THUMBNAILS if report and out_dir is not None else 0,
-                        thumbnail_side=THUMBNAIL_SIDE)
+                        thumbnail_side=THUMBNAIL_SIDE,
+                        rerun_replaces=out_dir is not None)
 
     index: list[int] = []  # the frames done, in order, and their times
     times: list[float] = []
@@ -280,6 +281,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
             if progress is not None:
                 progress(tracking.done, len(frames))
         run = tracking.result(time.perf_counter() - t0)
+        log.info("tracked %d frames in %.2f s (%.1f frames/s)", run.frames, run.seconds,
+                 run.fps)
     finally:
         with _signals_held():
             write_trajectory(run.trajectory if run is not None else tracking.trajectory())
@@ -288,14 +291,21 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
             if cov_writer is not None:
                 cov_writer.close()
     if out_dir is not None:
-        path_image = write_trajectory_plot(Path(out_dir), cfg.plane, run, gt_poses)
+        t1 = time.perf_counter()
+        name = sequence_name(frames.dir)
+        path_image = write_trajectory_plot(Path(out_dir), cfg.plane, run, gt_poses, name)
         heights = None
         if tracking.terrain is not None:
-            heights = write_terrain(Path(out_dir), tracking.terrain, run.trajectory, tracking.drive)
+            heights = write_terrain(Path(out_dir), tracking.terrain, run.trajectory, tracking.drive,
+                                    name)
+        log.info("trajectory.png%s written in %.2f s", " and the terrain products"
+                 if tracking.terrain is not None else "", time.perf_counter() - t1)
         if report:
-            write_report(Path(out_dir), run, cfg, record, title=Path(seq).resolve().name,
+            t1 = time.perf_counter()
+            write_report(Path(out_dir), run, cfg, record, title=name,
                          trajectory_image=path_image, heightmap_image=heights,
                          thumbnails=tracking.thumbnails, groundtruth=groundtruth)
+            log.info("report.html written in %.2f s", time.perf_counter() - t1)
         remove_checkpoint(Path(out_dir))  # finished: nothing to resume
     return run
 

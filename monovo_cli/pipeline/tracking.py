@@ -32,6 +32,7 @@ from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.run import RunRecorder, TrackRun
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import InputError, TrackingError
+from monovo_cli.geometry.plane import Plane, pitch_roll_deg
 from monovo_cli.io.config import InitConfig, check_frame_size, load_init
 from monovo_cli.io.sources import Frame, FrameSource, find_init_yaml, open_frames, resolve_sequence
 from monovo_cli.mapping.smoothing import SmoothedDrive, smooth_drive
@@ -39,6 +40,10 @@ from monovo_cli.mapping.terrain_map import TerrainMap
 from monovo_cli.pipeline.threads import one_blas_thread
 
 log = logging.getLogger(__name__)
+
+# What a bad frame's message suggests (the command line names the flags: cli.group.FLAG_WORDS)
+_RERUN = "rerun recording unreadable frames as lost"
+_RERUN_REPLACING = "rerun recording unreadable frames as lost and replacing these outputs"
 
 
 @dataclass(frozen=True)
@@ -121,6 +126,9 @@ class Tracking:
     guess; ``first_keyframe`` a frame-0 ground model built before (``monovo init``);
     ``skip_bad_frames`` records a frame that cannot be read (after frame 0) as lost instead
     of stopping; ``terrain`` keeps what tracking learns of the ground (:attr:`terrain`);
+    ``stopped(index)`` adds to the message of a frame that cannot be read what was kept;
+    ``rerun_replaces`` says in it that the rerun it suggests (recording unreadable frames as
+    lost) must be allowed to replace the outputs written so far.
     ``stopped(index)`` adds to the message of a frame that cannot be read what was kept.
     ``thumbnails`` > 0 keeps a small grey copy (uint8, at most ``thumbnail_side`` px on its
     longer side) of at most that many keyframes' images (:attr:`thumbnails`, frame index ->
@@ -133,7 +141,7 @@ class Tracking:
                  first_keyframe: Keyframe | None = None, skip_bad_frames: bool = False,
                  smooth: bool = True, terrain: bool = False,
                  stopped: Callable[[int], str] | None = None, thumbnails: int = 0,
-                 thumbnail_side: int = 240) -> None:
+                 thumbnail_side: int = 240, rerun_replaces: bool = False) -> None:
         self.seq = seq
         self.options = options or TrackOptions()
         self.smooth = smooth
@@ -141,6 +149,7 @@ class Tracking:
         self._priors = dict(priors or {})
         self._skip_bad_frames = skip_bad_frames
         self._stopped = stopped or (lambda index: f"frames 0..{index - 1} were done")
+        self._rerun_replaces = rerun_replaces
         cfg = seq.config
         self._odometry = Odometry(cfg.camera, cfg.plane, cfg.region, self.options, mask=mask,
                                   first_keyframe=first_keyframe,
@@ -171,6 +180,8 @@ class Tracking:
                 res, keys = odo.advance(index, timestamp, image, priors.get(index))
                 for key in keys:
                     self._recorder.add_keyframe(key)
+                    log.info("frame %d: keyframe of %d observation points; its ground %s",
+                             key.index, len(key.levels[0].points), _ground_words(key.plane))
                     if self.terrain is not None:
                         self.terrain.add(key, self._last_image)
                     if self._thumbnail_limit > 0:
@@ -253,6 +264,11 @@ class Tracking:
         with one_blas_thread():
             self.drive = (smooth_drive(rec.index, W, [(k.index, k) for k in rec.keyframes])
                           if self.smooth and len(rec) else None)
+            if self.drive is not None and self.drive.key_index:
+                log.info("the ground at frame %d as the whole drive measured it: %s; "
+                         "init.yaml gave %s", self.drive.key_index[0],
+                         _ground_words(self.drive.planes[0]),
+                         _ground_words(self.seq.config.plane))
             if self.terrain is not None and len(rec):
                 last_lost = rec.last_status == FrameStatus.LOST
                 self.terrain.finish(None if last_lost else self._last_image, W[-1])
@@ -275,16 +291,22 @@ class Tracking:
                 frame = frames.read(index)
             except InputError as exc:
                 if not self._skip_bad_frames:
+                    rerun = _RERUN_REPLACING if self._rerun_replaces else _RERUN
                     raise InputError(f"{exc}; tracking stopped at frame {index} "
-                                     f"({self._stopped(index)}); replace the file, or use "
-                                     "--skip-bad-frames to record bad frames as lost and go "
-                                     "on") from None
-                log.warning("%s; recorded as lost (--skip-bad-frames)", exc)
+                                     f"({self._stopped(index)}); replace the file, or "
+                                     f"{rerun}") from None
+                log.warning("%s; recorded as lost (unreadable frames are skipped)", exc)
                 self._last_image, self._last_index = None, index
                 yield index, float(frames.timestamps[index]), None
             else:
                 self._last_image, self._last_index = frame.image, frame.index
                 yield frame.index, frame.timestamp, frame.image
+
+
+def _ground_words(plane: Plane) -> str:
+    """A plane in its camera as a log line says it: the camera's pitch and roll, its height."""
+    pitch, roll = pitch_roll_deg(plane.normal)
+    return f"pitch {pitch:.2f} deg, roll {roll:.2f} deg, {plane.distance:.3f} m below the camera"
 
 
 def read_mask(path: Path, cfg: InitConfig) -> np.ndarray:

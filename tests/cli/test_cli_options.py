@@ -246,3 +246,18 @@ def test_config_file_problems_are_one_line_naming_file_and_key(calls, tmp_path, 
     assert "track" not in calls
     r = CliRunner().invoke(main, ["track", "seq", "-o", "x", "--config", str(tmp_path / "no.yaml")])
     assert r.exit_code == 2 and "no.yaml: cannot read the config file" in r.output
+
+
+def test_verbose_says_what_a_healthy_run_does(small_drive, tmp_path):
+    """-v: the keyframes, the ground measured against init.yaml's, the timing (INFO); no
+    debug lines, which -vv adds."""
+    r = CliRunner().invoke(main, ["track", str(small_drive), "-o", str(tmp_path / "o"), "-v"])
+    assert r.exit_code == 0, r.output
+    assert "frame 0: keyframe of " in r.output
+    assert "its ground pitch 45.00 deg, roll 0.00 deg, 1.500 m below the camera" in r.output
+    assert "as the whole drive measured it: pitch " in r.output and "init.yaml gave" in r.output
+    assert "tracked 10 frames in " in r.output and "frames/s)\n" in r.output
+    assert "trajectory.png written in " in r.output
+    assert "DEBUG" not in r.output and "no BLAS library" not in r.output
+    r = CliRunner().invoke(main, ["track", str(small_drive), "-o", str(tmp_path / "o2")])
+    assert r.exit_code == 0 and "keyframe of" not in r.output

@@ -111,6 +111,37 @@ def test_skip_bad_frames_records_lost_and_goes_on(base_seq, tmp_path):
     np.testing.assert_allclose(t3, t2, atol=1e-9)
 
 
+def test_the_rerun_a_bad_frame_suggests_works(base_seq, tmp_path):
+    """The message of a bad frame in the middle names a rerun; that rerun, into the same
+    folder, is accepted and records the frame as lost."""
+    import shutil
+
+    seq, out = tmp_path / "seq", tmp_path / "out"
+    shutil.copytree(base_seq, seq)
+    sorted((seq / "frames").glob("*.png"))[3].write_bytes(b"")
+    r = CliRunner().invoke(main, ["track", str(seq), "-o", str(out), "-q"])
+    assert r.exit_code == 2
+    suggested = "rerun with --skip-bad-frames --overwrite to record bad frames as lost"
+    assert suggested in r.output, r.output
+    r = CliRunner().invoke(main, ["track", str(seq), "-o", str(out), "-q", "--skip-bad-frames",
+                                  "--overwrite"])
+    assert r.exit_code == 0, r.output
+    rows = list(csv.DictReader((out / "motion.csv").open()))
+    assert [r["status"] for r in rows][2] == "lost"
+    # streaming: nothing to replace, the flag alone
+    r = CliRunner().invoke(main, ["track", str(seq), "-o", "-", "-q"])
+    assert r.exit_code == 2
+    assert "rerun with --skip-bad-frames to record bad frames as lost" in r.output
+    assert "--overwrite" not in r.output
+
+
+def test_a_blank_frame_0_is_not_told_to_lower_the_threshold(base_seq, tmp_path):
+    """No threshold gives points on a constant frame: the message does not suggest one."""
+    out = run_case(_case("textureless-frame0"), tmp_path, base_seq)
+    assert out.status == 2
+    assert "lower" not in out.stderr and "--threshold" not in out.stderr, out.stderr
+
+
 def test_streaming_error_keeps_stdout_pure_csv(base_seq, tmp_path):
     out = run_case(_case("frame-mid-stream"), tmp_path, base_seq)
     assert out.status == 2
@@ -181,12 +212,15 @@ def test_internal_error_traceback_only_with_verbose(base_seq, tmp_path, verbose)
             "Error: internal error: RuntimeError: simulated fault (run with -v for the traceback)"]
 
 
-def test_bad_input_traceback_only_with_verbose(base_seq, tmp_path):
+def test_bad_input_traceback_only_with_vv(base_seq, tmp_path):
+    """A user error is one line, with -v too; -vv adds its traceback for debugging."""
     args = [sys.executable, "-m", "monovo_cli", "track", str(tmp_path / "nope"), "-o",
             str(tmp_path / "o")]
     quiet = subprocess.run(args, capture_output=True, text=True, timeout=120)
-    loud = subprocess.run(args + ["-v"], capture_output=True, text=True, timeout=120)
-    assert quiet.returncode == loud.returncode == 2
+    verbose = subprocess.run(args + ["-v"], capture_output=True, text=True, timeout=120)
+    loud = subprocess.run(args + ["-vv"], capture_output=True, text=True, timeout=120)
+    assert quiet.returncode == verbose.returncode == loud.returncode == 2
+    assert verbose.stderr == quiet.stderr and len(quiet.stderr.strip().splitlines()) == 1
     assert "Traceback" not in quiet.stderr and "Traceback" in loud.stderr
     assert quiet.stderr.strip().splitlines()[-1] == loud.stderr.strip().splitlines()[-1]
 
@@ -330,3 +364,11 @@ def test_degenerate_frames_are_lost(degenerate_runs, kind):
     assert status == 0, output
     got = {k: rows[k]["status"] for k in replaced}
     assert got == {k: "lost" for k in replaced}, got
+
+
+def test_the_exit_status_table_lists_every_status():
+    """Every status a command exits with has its row (0, 1, 2, 3 and the signals')."""
+    text = DOC.read_text()
+    table = text[text.index("## Exit statuses"):text.index("## Bad inputs")]
+    statuses = {ln.split("|")[1].strip() for ln in table.splitlines() if ln.startswith("| ")}
+    assert {"0", "1", "2", "3", "130", "141", "143"} <= statuses, statuses

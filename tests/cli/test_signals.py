@@ -160,6 +160,7 @@ def test_sigint_while_streaming_keeps_stdout_pure_csv(drive):
     stdout = first + rest
     assert stdout.endswith("\n") and reference["motion.csv"].startswith(stdout)
     assert "interrupted" in err
+    assert "on disk" not in err and "went to stdout; no file was written" in err, err
 
 
 @pytest.mark.parametrize("seed", [1, 9])  # rows 36 and 120: before and after a checkpoint

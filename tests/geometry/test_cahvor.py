@@ -286,3 +286,38 @@ def test_a_drive_seen_through_the_navcam_model_tracks_within_1_percent(tmp_path)
     assert length(gt) > 1.0
     assert length(est) == pytest.approx(length(gt), rel=0.01)
     assert np.linalg.norm(est[-1, :3, 3] - gt[-1, :3, 3]) < 0.01 * length(gt)
+
+
+def test_a_cahvor_that_is_a_pinhole_tracks_to_the_pinholes_bytes(small_drive, tmp_path):
+    """No distortion terms of rounding size: the fitted camera is the pinhole itself, and a
+    drive tracked through its CAHVOR model gives the pinhole init.yaml's bytes."""
+    from click.testing import CliRunner
+
+    from monovo_cli.cli import main
+
+    pinhole = load_init(small_drive / "init.yaml")
+    assert not pinhole.camera.has_distortion
+    model = cahvor_from_pinhole(pinhole.camera)
+    params = _init(tmp_path, _cahvor_yaml(model, pinhole.camera.width),
+                   {"normal": [float(v) for v in pinhole.plane.normal],
+                    "distance": pinhole.plane.distance})
+    cam = load_init(params).camera
+    assert cam.distortion == (0.0, 0.0, 0.0, 0.0, 0.0) and not cam.has_distortion
+    assert (cam.fx, cam.fy, cam.cx, cam.cy) == pytest.approx(
+        (pinhole.camera.fx, pinhole.camera.fy, pinhole.camera.cx, pinhole.camera.cy), abs=1e-9)
+    outputs = {}
+    for name, init in (("pinhole", small_drive / "init.yaml"), ("cahvor", params)):
+        r = CliRunner().invoke(main, ["track", str(small_drive), "-p", str(init), "-o",
+                                      str(tmp_path / name), "-q"])
+        assert r.exit_code == 0, r.output
+        outputs[name] = [(tmp_path / name / f).read_bytes()
+                         for f in ("motion.csv", "trajectory.csv", "trajectory.tum")]
+    assert outputs["cahvor"] == outputs["pinhole"]
+
+
+def test_real_distortion_is_kept():
+    from monovo_cli.io.jpl_camera import without_negligible_distortion
+
+    cam = PinholeCamera(800, 600, 700.0, 698.0, 401.3, 297.9, (-0.3, 1e-18, 2e-5, 0.0, 1e-17))
+    kept = without_negligible_distortion(cam)
+    assert kept.distortion == (-0.3, 0.0, 2e-5, 0.0, 0.0)

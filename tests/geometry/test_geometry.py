@@ -107,3 +107,11 @@ def test_plane_transform_and_ray_intersection():
     moved = plane.in_frame(T)
     Xb = X @ T[:3, :3].T + T[:3, 3]
     np.testing.assert_allclose(Xb @ moved.normal, moved.distance, atol=1e-12)
+
+
+@pytest.mark.parametrize("pitch, roll", [(45.0, 0.0), (30.0, -7.5), (89.0, 12.0), (10.0, 170.0)])
+def test_pitch_roll_of_a_normal_round_trip(pitch, roll):
+    from monovo_cli.geometry.plane import normal_from_pitch_roll, pitch_roll_deg
+
+    got = pitch_roll_deg(normal_from_pitch_roll(pitch, roll))
+    np.testing.assert_allclose(got, (pitch, roll), atol=1e-9)

@@ -523,8 +523,9 @@ CASES: list[Case] = [
                     "data: [1, 0, 64, 0, 1, 64]}\n")),
     # --- the ground model --------------------------------------------------------------
     _c("textureless-frame0", "ground model", "textureless first frame (constant grey)",
-       TRACK_COPY, 2, ("observation points", "lower --threshold", "another region"),
-       _damage_frame(0, "constant")),
+       TRACK_COPY, 2, ("observation points", "no threshold would give enough", "check the frame",
+                       "another region"),
+       _damage_frame(0, "constant"), note="no threshold helps, so none is suggested"),
     _c("threshold-too-high", "ground model", "--threshold above every gradient",
        (*T, "{seq}", *OUT, "--threshold", "1e9"), 2, ("observation points", "lower --threshold")),
     # --- outputs -------------------------------------------------------------------------
@@ -547,6 +548,11 @@ CASES: list[Case] = [
     _c("out-disk-full", "outputs", "-o - into a full device (stdout is /dev/full)",
        (*T, "{seq}", "-o", "-"), 2, ("cannot write the outputs", "no space left", "free some space"),
        stdout_to="/dev/full"),
+    _c("stdout-groundtruth", "outputs", "--groundtruth with -o - (nothing to draw it in)",
+       (*T, "{seq}", "-o", "-", "--groundtruth", "{seq}/groundtruth.tum"), 2,
+       ("--groundtruth", "trajectory.png", "-o DIR")),
+    _c("stdout-terrain-out", "outputs", "--terrain-out with -o - (it writes files)",
+       (*T, "{seq}", "-o", "-", "--terrain-out"), 2, ("--terrain-out", "-o DIR")),
     _c("covariance-no-dir", "outputs", "--covariance in a directory that does not exist",
        (*T, "{seq}", *OUT, "--covariance", "{tmp}/no/cov.csv"), 2,
        ("no/cov.csv", "no such directory"),

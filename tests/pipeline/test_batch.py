@@ -280,3 +280,63 @@ def test_internal_errors_exit_1(archive, tmp_path, monkeypatch):
 def test_batch_usage_errors(archive, tmp_path, args, message):
     r = CliRunner().invoke(main, ["batch", str(archive), "-o", str(tmp_path / "o"), *args])
     assert r.exit_code == 2 and message in r.output, r.output
+
+
+@pytest.fixture(scope="module")
+def noisy_archive(tmp_path_factory) -> Path:
+    """One good sequence and one whose frames after the first are pure noise (most lost)."""
+    import cv2
+    import numpy as np
+
+    root = tmp_path_factory.mktemp("noisy") / "archive"
+    synthesize(root / "good", preset="drive", frames=8, size=(128, 128), seed=1)
+    synthesize(root / "noisy", preset="drive", frames=8, size=(128, 128), seed=3)
+    rng = np.random.default_rng(0)
+    frames = sorted((root / "noisy" / "frames").glob("*.png"))
+    assert len(frames) == 8
+    for path in frames[1:]:
+        cv2.imwrite(str(path), rng.integers(0, 256, (128, 128), dtype=np.uint8))
+    return root
+
+
+def test_a_mostly_lost_sequence_fails_on_data_with_status_3_on_every_rerun(noisy_archive,
+                                                                           tmp_path):
+    out = tmp_path / "out"
+    for extra in ([], ["--resume"], ["--resume"], ["--overwrite"]):
+        r = CliRunner().invoke(main, ["batch", str(noisy_archive), "-o", str(out), "-q",
+                                      "--workers", "1", *extra])
+        assert r.exit_code == 3, (extra, r.output)
+        assert "1 of 2 sequence(s) failed, first noisy: 7 of 7 frames lost" in r.output
+        rows = _summary(out)
+        assert rows["noisy"]["status"] == "failed", extra
+        assert rows["noisy"]["error"] == "7 of 7 frames lost (more than half)", extra
+        assert rows["good"]["status"] == ("skipped" if extra == ["--resume"] else "ok")
+        assert (out / "noisy" / "trajectory.csv").is_file()  # the outputs are kept
+
+
+def test_resume_tracks_again_a_sequence_its_done_json_records_as_failed(noisy_archive,
+                                                                        tmp_path):
+    out = tmp_path / "out"
+    s = run_batch(noisy_archive, out, workers=1, pattern="noisy")
+    assert [r["error_kind"] for r in s.results] == ["lost"]
+    assert not s.internal_errors and not s.input_errors
+    before = (out / "noisy" / "motion.csv").stat().st_mtime_ns
+    s = run_batch(noisy_archive, out, workers=1, pattern="noisy", resume=True)
+    assert [(r["status"], r["error_kind"]) for r in s.results] == [("failed", "lost")]
+    assert (out / "noisy" / "motion.csv").stat().st_mtime_ns != before
+
+
+def test_a_failure_is_told_once_with_its_flags(noisy_archive, tmp_path):
+    """Without -q each failure's error is logged as it comes (with the command line's flags),
+    and the last line points at it instead of repeating it; with -q the last line holds it."""
+    args = ["batch", str(noisy_archive), "-o", str(tmp_path / "o"), "--workers", "1",
+            "--glob", "good", "--threshold", "1e9"]
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 2, r.output
+    assert r.output.count("only 0 observation points") == 1, r.output
+    assert "lower --threshold" in r.output and "gradient threshold" not in r.output
+    assert "first good (its error above)" in r.output
+    r = CliRunner().invoke(main, [*args, "-q", "--overwrite"])
+    assert r.exit_code == 2, r.output
+    assert r.output.count("only 0 observation points") == 1, r.output
+    assert "first good: " in r.output and "lower --threshold" in r.output

@@ -353,3 +353,27 @@ def _text_of(renderer, seq, pose):
     a = renderer.render(1, img, pose)
     b = renderer.render(1, img, pose)  # "new triangle" only once
     return "new triangle" if not np.array_equal(a[:20], b[:20]) else ""
+
+
+def test_a_wrong_height_does_not_show_in_the_overlay_only_in_the_lengths(small_drive, tmp_path):
+    """Monocular scale ambiguity (docs/guide.md, "init.yaml for a real camera"): with the
+    height doubled every translation doubles and the overlay is pixel-identical."""
+    init = (small_drive / "init.yaml").read_text()
+    assert "distance: 1.5" in init
+    frames, paths = {}, {}
+    for height in ("1.5", "3.0"):
+        params = tmp_path / f"init_{height}.yaml"
+        params.write_text(init.replace("distance: 1.5", f"distance: {height}"))
+        out, pngs = tmp_path / f"out_{height}", tmp_path / f"overlay_{height}"
+        r = CliRunner().invoke(main, ["track", str(small_drive), "-p", str(params), "-o",
+                                      str(out), "-q"])
+        assert r.exit_code == 0, r.output
+        r = CliRunner().invoke(main, ["overlay", str(small_drive), "-p", str(params), "-t",
+                                      str(out / "trajectory.csv"), "-o", f"{pngs}/", "-q",
+                                      "--points"])
+        assert r.exit_code == 0, r.output
+        frames[height] = [f.read_bytes() for f in sorted(pngs.glob("*.png"))]
+        paths[height] = read_tum(out / "trajectory.tum")[1][:, :3, 3]
+    assert len(frames["1.5"]) == 10
+    assert frames["1.5"] == frames["3.0"]
+    np.testing.assert_allclose(paths["3.0"], 2 * paths["1.5"], atol=1e-9)

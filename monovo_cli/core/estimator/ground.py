@@ -175,10 +175,23 @@ def select_points(image: np.ndarray, camera: PinholeCamera, plane: Plane, corner
                        corners=corners)
 
 
-def require_points(points: LevelPoints, *, minimum: int, threshold: float) -> None:
+def require_points(points: LevelPoints, *, minimum: int, threshold: float,
+                   textured: int | None = None) -> None:
     """Raise TrackingError when ``points`` (a keyframe level's) are fewer than ``minimum``,
-    too few to estimate 6 DoF; the message names the gradient ``threshold`` they passed."""
-    if len(points) < minimum:
+    too few to estimate 6 DoF; the message names the gradient ``threshold`` they passed.
+
+    ``textured``: the points any gradient at all would give (those of a threshold of 0), or
+    None when not known. When they are fewer than ``minimum`` too, no threshold helps (a
+    blank, saturated or black region) and the message says so instead of suggesting a
+    lower threshold.
+    """
+    if len(points) >= minimum:
+        return
+    found = (f"only {len(points)} observation points with gradient > {threshold:.3g} in the "
+             f"ground region (need {minimum})")
+    if textured is not None and textured < minimum:
         raise TrackingError(
-            f"only {len(points)} observation points with gradient > {threshold:.3g} in the ground "
-            f"region (need {minimum}); lower the gradient threshold or choose another region")
+            f"{found}, and no threshold would give enough: only {textured} of its pixels "
+            "have any gradient (a blank, over- or under-exposed frame?); check the frame or "
+            "choose another region")
+    raise TrackingError(f"{found}; lower the gradient threshold or choose another region")
