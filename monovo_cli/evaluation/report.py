@@ -68,9 +68,13 @@ def format_drive(dr: DriveEvaluation) -> str:
     return "\n".join(lines)
 
 
-def _stats_line(label: str, stats: dict, unit: str) -> str:
-    vals = "  ".join(f"{k} {stats[k]:.6g}" for k in ("rmse", "mean", "median", "std", "max"))
-    return f"  {label:<28}{vals} ({unit})"
+def _stats_row(label: str, stats: dict) -> str:
+    """One row of statistics in fixed notation, as many decimals as give the largest four
+    significant digits (one notation per row, so the columns compare at a glance)."""
+    keys = ("rmse", "mean", "median", "std", "max")
+    top = max((abs(stats[k]) for k in keys if math.isfinite(stats[k])), default=0.0)
+    decimals = max(0, 3 - math.floor(math.log10(top))) if top > 0 else 0
+    return f"  {label:<24}" + "".join(f"{stats[k]:>12.{decimals}f}" for k in keys)
 
 
 def format_errors(dr: DriveEvaluation) -> list[str]:
@@ -79,12 +83,17 @@ def format_errors(dr: DriveEvaluation) -> list[str]:
 
     ape_what = {"none": "no alignment", "se3": "SE(3) aligned",
                 "sim3": "Sim(3) aligned"}[dr.evaluation.align]
-    lines = ["Absolute and relative pose errors (evo's APE, RPE with delta 1)",
-             _stats_line(f"APE, {ape_what}", error_stats(dr.ape), "m"),
-             _stats_line("RPE translation", error_stats(dr.rpe_t), "m"),
-             _stats_line("RPE rotation", error_stats(dr.rpe_r), "deg"), ""]
+    lines = ["Absolute and relative pose errors (evo's APE; RPE between consecutive poses)",
+             f"  {'':<24}" + "".join(f"{k:>12}" for k in ("rmse", "mean", "median", "std",
+                                                          "max")),
+             _stats_row(f"APE, {ape_what} (m)", error_stats(dr.ape)),
+             _stats_row("RPE translation (m)", error_stats(dr.rpe_t)),
+             _stats_row("RPE rotation (deg)", error_stats(dr.rpe_r)), ""]
     s = dr.segments.summary()
-    lines.append(f"Errors by travelled distance (KITTI-style; first poses every {s['step_poses']})")
+    starts = ("every matched pose" if s["step_poses"] == 1
+              else f"every {s['step_poses']}th matched pose")
+    lines.append(f"Errors by travelled distance (KITTI-style; {starts} starts a segment of "
+                 "each length)")
     lines.append(f"  {'segment':<12}{'pairs':>8}{'translation (%)':>18}{'rotation (deg/m)':>19}")
 
     def row(name: str, m: dict) -> str:

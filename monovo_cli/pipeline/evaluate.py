@@ -115,14 +115,17 @@ def write_eval_plots(result: EvalResult, out_dir: Path) -> list[Path]:
     dr = result.drive
     name = result.estimate.path.name
     x_time = "time (s)" if dr.by_time else "frame"
+    ape = {"none": "APE, no alignment (m)", "se3": "APE, SE(3) aligned (m)",
+           "sim3": "APE, Sim(3) aligned (m)"}[dr.evaluation.align]
     images = {
         PLOT_NAMES[0]: plot_paths_from_above(
             dr.est[:, :3, 3], dr.gt[:, :3, 3],
             title=f"{name} against {result.groundtruth.path.name}"),
         PLOT_NAMES[1]: plot_errors_over(dr.keys, dr.ape, dr.rpe_t, dr.rpe_r, xlabel=x_time,
-                                        title=f"{name}: errors over {x_time.split()[0]}"),
+                                        title=f"{name}: errors over {x_time.split()[0]}",
+                                        ape_label=ape),
         PLOT_NAMES[2]: plot_errors_over(dr.distance, dr.ape, dr.rpe_t, dr.rpe_r,
-                                        xlabel="distance travelled (m)",
+                                        xlabel="distance travelled (m)", ape_label=ape,
                                         title=f"{name}: errors over distance",
                                         segments=(dr.distance[dr.segments.first],
                                                   100.0 * dr.segments.translation,

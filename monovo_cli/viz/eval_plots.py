@@ -196,17 +196,19 @@ def plot_paths_from_above(est_xyz: np.ndarray, gt_xyz: np.ndarray, *, title: str
 def plot_errors_over(x: np.ndarray, ape: np.ndarray, rpe_t: np.ndarray, rpe_r: np.ndarray, *,
                      xlabel: str, title: str | None = None,
                      segments: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+                     ape_label: str = "APE (m)",
                      size: tuple[int, int] = (1000, 900)) -> np.ndarray:
     """Errors against ``x`` (N,) (time s, frame, or distance m) as a BGR uint8 image
     (H, W, 3), one panel each: the APE ``ape`` (N,) m; the RPE ``rpe_t`` (N-1,) m and
     ``rpe_r`` (N-1,) deg, drawn at the later pose of each pair; and with ``segments`` =
     ``(x_first (M,), translation % (M,), length m (M,))`` the errors over segments of
-    travelled distance, one colour per length, at each segment's first pose."""
+    travelled distance, one colour per length, at each segment's first pose; ``ape_label``
+    titles the APE's panel (say the alignment there)."""
     w, h = size
     x = np.asarray(x, float)
     img = np.full((h, w, 3), BACKGROUND, np.uint8)
     sc = max(0.4, w / 2000.0)
-    panels = [("APE (m)", [(x, ape, SERIES[0])]),
+    panels = [(ape_label, [(x, ape, SERIES[0])]),
               ("RPE translation per pose (m)", [(x[1:], rpe_t, SERIES[1])]),
               ("RPE rotation per pose (deg)", [(x[1:], rpe_r, SERIES[2])])]
     legend = []
