@@ -271,8 +271,9 @@ def error_stats(errors: np.ndarray) -> dict[str, float]:
 def relative_pose_errors(est_world_from_cam: np.ndarray, gt_world_from_cam: np.ndarray, *,
                          delta: int = 1) -> tuple[np.ndarray, np.ndarray]:
     """The relative pose error over ``delta`` poses (evo_rpe's, its "full" relation): for each
-    i, ``E_i = inv(inv(G_i) G_{i+delta}) inv(E_i) E_{i+delta}`` of matched poses (N, 4, 4);
-    returns its translation norms (N-delta,) m and rotation angles (N-delta,) deg."""
+    i, ``inv(inv(G_i) G_{i+delta}) inv(P_i) P_{i+delta}`` of the matched estimated poses P
+    and true poses G (N, 4, 4); returns its translation norms (N-delta,) m and rotation
+    angles (N-delta,) deg."""
     est, gt = np.asarray(est_world_from_cam), np.asarray(gt_world_from_cam)
     n = max(len(est) - delta, 0)
     t, r = np.zeros(n), np.zeros(n)

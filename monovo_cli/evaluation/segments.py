@@ -5,7 +5,8 @@ of KITTI's 10 Hz) and every segment length L, the last pose j is the first after
 true path length from i exceeds L (the devkit's ``lastFrameFromSegmentLength``: the
 distance along the ground truth, summed pose to pose, strictly greater than
 ``dist[i] + L``); segments running past the end are skipped. The segment's error is the
-relative pose error of the two relative motions ``E = inv(inv(E_i) E_j) inv(G_i) G_j``:
+relative pose error of the two relative motions ``E = inv(inv(P_i) P_j) inv(G_i) G_j``
+(P the estimate, G the truth):
 translation error ``|t(E)| / L`` (a fraction: x100 for %), rotation error
 ``angle(R(E)) / L`` (rad/m; x180/pi for deg/m), the angle taken as
 ``acos(clip((trace(R) - 1) / 2, -1, 1))``. The averages are over every (i, L) pair pooled,

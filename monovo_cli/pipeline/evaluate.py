@@ -4,7 +4,8 @@
 trajectories`: TUM, KITTI poses, EuRoC CSV, monovo's CSVs or output folder), pairs them by
 time, or by frame number when either has no timestamps, and evaluates the drive
 (:func:`~monovo_cli.evaluation.drive.evaluate_drive`); :func:`write_eval_plots` draws the
-result's PNGs (:mod:`monovo_cli.viz.eval_plots`). Both are what ``monovo eval`` calls, and
+result's PNGs (:mod:`monovo_cli.viz.eval_plots`; :func:`eval_plot_images` gives them as
+images, for a page that embeds them). Both are what ``monovo eval`` calls, and
 what a report embedding the figures calls.
 """
 
@@ -12,6 +13,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from pathlib import Path
+
+import numpy as np
 
 from monovo_cli.errors import OutputError
 from monovo_cli.evaluation.drive import DriveEvaluation, ReportedMotions, evaluate_drive
@@ -94,24 +97,19 @@ def evaluate_files(est_path: Path, gt_path: Path, options: EvalOptions | None = 
     return EvalResult(est, gt, drive)
 
 
-def write_eval_plots(result: EvalResult, out_dir: Path) -> list[Path]:
-    """The plots of ``result`` as PNGs in ``out_dir`` (made if missing), each written
-    atomically: ``eval_trajectory.png`` (both paths from above), ``eval_errors_time.png`` and
-    ``eval_errors_distance.png`` (APE and RPE over time or frame, and over distance, with the
-    segment errors), ``eval_axes_std.png`` (per-axis errors of the reported motions with
-    their ±3σ band; only when the reported std is at hand). Returns the paths written."""
-    from monovo_cli.io.video import write_png_atomic
+def eval_plot_images(result: EvalResult) -> dict[str, np.ndarray]:
+    """The plots of ``result`` as BGR uint8 images (H, W, 3), by file name (:data:`PLOT_NAMES`,
+    in that order): ``eval_trajectory.png`` (both paths from above, after the alignment
+    asked for), ``eval_errors_time.png`` and ``eval_errors_distance.png`` (APE and RPE over
+    time or frame, and over distance, with the segment errors), ``eval_axes_std.png``
+    (per-axis errors of the reported motions with their ±3σ band; only when the reported
+    std is at hand)."""
     from monovo_cli.viz.eval_plots import (
         plot_axis_errors,
         plot_errors_over,
         plot_paths_from_above,
     )
 
-    out_dir = Path(out_dir)
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except (FileExistsError, NotADirectoryError):
-        raise OutputError(f"{out_dir}: is a file; the plots need a folder") from None
     dr = result.drive
     name = result.estimate.path.name
     x_time = "time (s)" if dr.by_time else "frame"
@@ -136,8 +134,21 @@ def write_eval_plots(result: EvalResult, out_dir: Path) -> list[Path]:
             dr.keys[dr.band.pose], dr.band.errors, dr.band.std, sigmas=dr.band.sigmas,
             xlabel=x_time, title=f"{name}: relative-motion errors and the reported "
                                  f"±{dr.band.sigmas:g} std")
+    return images
+
+
+def write_eval_plots(result: EvalResult, out_dir: Path) -> list[Path]:
+    """The plots of ``result`` (:func:`eval_plot_images`) as PNGs in ``out_dir`` (made if
+    missing), each written atomically. Returns the paths written."""
+    from monovo_cli.io.video import write_png_atomic
+
+    out_dir = Path(out_dir)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        raise OutputError(f"{out_dir}: is a file; the plots need a folder") from None
     written = []
-    for fname, img in images.items():
+    for fname, img in eval_plot_images(result).items():
         write_png_atomic(out_dir / fname, img)
         written.append(out_dir / fname)
     return written

@@ -9,11 +9,13 @@ import pytest
 from click.testing import CliRunner
 
 from monovo_cli.cli import main
+from monovo_cli.errors import OutputError
 from monovo_cli.geometry.lie import quat_from_matrix
 from monovo_cli.io.formats import read_tum
 from monovo_cli.pipeline.evaluate import (
     PLOT_NAMES,
     EvalOptions,
+    eval_plot_images,
     evaluate_files,
     run_eval,
     write_eval_plots,
@@ -63,8 +65,13 @@ def test_plots_and_json_are_written(tracked, tmp_path):
     # an estimate without motion.csv has no band and no band plot
     plain = tmp_path / "plain.tum"
     shutil.copy(out / "trajectory.tum", plain)
-    written = write_eval_plots(evaluate_files(plain, seq / "groundtruth.tum"), tmp_path / "p2")
+    plain_result = evaluate_files(plain, seq / "groundtruth.tum")
+    written = write_eval_plots(plain_result, tmp_path / "p2")
     assert [p.name for p in written] == list(PLOT_NAMES[:3])
+    images = eval_plot_images(result)  # in memory, for a page that embeds them
+    assert list(images) == list(PLOT_NAMES) and images[PLOT_NAMES[0]].shape == (800, 800, 3)
+    with pytest.raises(OutputError, match="plain.tum: is a file; the plots need a folder"):
+        write_eval_plots(plain_result, plain)
 
 
 def test_every_input_of_one_run_gives_the_same_figures(tracked, tmp_path):
