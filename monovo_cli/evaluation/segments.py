@@ -87,10 +87,9 @@ def segment_errors(est_world_from_cam: np.ndarray, gt_world_from_cam: np.ndarray
     rows = []
     for i in range(0, len(gt), step):
         for L in lengths:
-            beyond = np.nonzero(dist[i:] > dist[i] + L)[0]
-            if not len(beyond):
+            j = int(np.searchsorted(dist, dist[i] + L, side="right"))  # first dist > d_i + L
+            if j >= len(dist):
                 continue
-            j = i + int(beyond[0])
             E = se3_inv(se3_inv(est[i]) @ est[j]) @ (se3_inv(gt[i]) @ gt[j])
             rows.append((i, j, L, np.linalg.norm(E[:3, 3]) / L, rotation_angle(E[:3, :3]) / L))
     a = np.array(rows, dtype=float).reshape(-1, 5)
