@@ -61,6 +61,15 @@ def test_plots_and_json_are_written(tracked, tmp_path):
                      "eval_axes_std.png": (1200, 1000, 3)}
     d = json.loads((tmp_path / "eval.json").read_text())
     assert d == json.loads(json.dumps(result.as_dict()))
+    assert set(d) == {  # stable keys: scripts read them (docs/guide.md "monovo eval")
+        "poses", "estimate_poses", "groundtruth_poses", "max_dt_s", "alignment", "scale",
+        "relative_motions", "relative_errors", "translation_average", "rotation_average",
+        "ate_rmse_m", "ate_max_m", "ate_rmse_aligned_m", "distance_m", "final_drift_m",
+        "final_drift_pct", "final_rotation_error_deg", "rotation_drift_deg_per_m", "pairing",
+        "partial", "ape", "rpe", "segments", "std_band", "inputs"}
+    assert set(d["segments"]) == {"step_poses", "segments", "translation_pct",
+                                  "rotation_deg_per_m", "by_length"}
+    assert set(d["rpe"]) == {"delta_poses", "translation_m", "rotation_deg"}
     assert d["inputs"]["estimate"]["format"] == "folder" and d["alignment"] == "se3"
     # an estimate without motion.csv has no band and no band plot
     plain = tmp_path / "plain.tum"
