@@ -34,6 +34,8 @@ FLAG_WORDS = (
     ("lower the gradient threshold", "lower --threshold"),  # core.estimator.ground
     ("max_dt sets the tolerance", "--max-dt sets the tolerance"),  # evaluation.sync
     ("aligning them compares their shapes", "--align compares their shapes"),  # evaluation.report
+    ("allow a partial match", "give --partial"),  # evaluation.sync
+    ("name the format", "name it with --format (the estimate) or --gt-format"),  # io.trajectories
     ("allow overwriting or choose another output", "use --overwrite or another -o"),  # io.video
     ("(a tracking run writes one with its terrain products)",  # io.terrain
      "(written by 'monovo track SEQ -o DIR --terrain-out')"),

@@ -202,8 +202,22 @@ def evaluate(ts_est: np.ndarray, est_world_from_cam: np.ndarray, ts_gt: np.ndarr
     if len(ie) < 2:
         raise InputError(f"{names[0]}: only {len(ie)} pose(s) match the {names[1]} within "
                          f"{tol:g} s; evaluation needs at least 2")
-    n_est, n_gt = len(est), len(gt)
-    est, gt = est[ie], gt[ig]
+    return evaluate_matched(est[ie], gt[ig], align=align, max_dt=tol,
+                            estimate_poses=len(est), groundtruth_poses=len(gt))
+
+
+def evaluate_matched(est_world_from_cam: np.ndarray, gt_world_from_cam: np.ndarray, *,
+                     align: bool | str = False, max_dt: float = MAX_DT,
+                     estimate_poses: int | None = None,
+                     groundtruth_poses: int | None = None) -> Evaluation:
+    """The error measures of :func:`evaluate` over poses already paired: ``est`` and ``gt``
+    (N, 4, 4), pose i with pose i, N >= 2; ``max_dt`` (s) and the pose counts of the two
+    trajectories before matching (default N) are recorded in the result."""
+    align = _alignment(align)
+    est = np.array(est_world_from_cam, dtype=float)
+    gt = np.asarray(gt_world_from_cam, dtype=float)
+    n_est = len(est) if estimate_poses is None else estimate_poses
+    n_gt = len(gt) if groundtruth_poses is None else groundtruth_poses
     err, _ = ate(est, gt)
     start_offset = float(err[0])
     err_al, T_al = ate(est, gt, align=align) if align != "none" else (None, None)
@@ -219,7 +233,7 @@ def evaluate(ts_est: np.ndarray, est_world_from_cam: np.ndarray, ts_gt: np.ndarr
     rot = float(np.degrees(np.linalg.norm(so3_log(g_end[:3, :3].T @ e_end[:3, :3]))))
     dist = path_length(gt)
     return Evaluation(
-        poses=len(ie),
+        poses=len(est),
         relative_mean=rel.mean(axis=0),
         relative_std=rel.std(axis=0),
         ate_rmse=float(np.sqrt(np.mean(err ** 2))),
@@ -233,8 +247,38 @@ def evaluate(ts_est: np.ndarray, est_world_from_cam: np.ndarray, ts_gt: np.ndarr
         rotation_drift_deg_per_m=rot / dist if dist > 0 else float("nan"),
         estimate_poses=n_est,
         groundtruth_poses=n_gt,
-        max_dt=tol,
+        max_dt=max_dt,
         align=align,
         scale=scale,
         start_offset_m=start_offset,
     )
+
+
+STATS = ("rmse", "mean", "median", "std", "min", "max")
+
+
+def error_stats(errors: np.ndarray) -> dict[str, float]:
+    """RMSE, mean, median, standard deviation, minimum and maximum of ``errors`` (N,), in
+    their unit, as evo's ``Result.stats`` gives them (:data:`STATS`; NaN for none)."""
+    e = np.asarray(errors, dtype=float)
+    if e.size == 0:
+        return {k: float("nan") for k in STATS}
+    return {"rmse": float(np.sqrt(np.mean(e ** 2))), "mean": float(e.mean()),
+            "median": float(np.median(e)), "std": float(e.std()), "min": float(e.min()),
+            "max": float(e.max())}
+
+
+def relative_pose_errors(est_world_from_cam: np.ndarray, gt_world_from_cam: np.ndarray, *,
+                         delta: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """The relative pose error over ``delta`` poses (evo_rpe's, its "full" relation): for each
+    i, ``inv(inv(G_i) G_{i+delta}) inv(P_i) P_{i+delta}`` of the matched estimated poses P
+    and true poses G (N, 4, 4); returns its translation norms (N-delta,) m and rotation
+    angles (N-delta,) deg."""
+    est, gt = np.asarray(est_world_from_cam), np.asarray(gt_world_from_cam)
+    n = max(len(est) - delta, 0)
+    t, r = np.zeros(n), np.zeros(n)
+    for i in range(n):
+        E = se3_inv(se3_inv(gt[i]) @ gt[i + delta]) @ (se3_inv(est[i]) @ est[i + delta])
+        t[i] = np.linalg.norm(E[:3, 3])
+        r[i] = np.degrees(np.linalg.norm(so3_log(E[:3, :3])))
+    return t, r

@@ -1,11 +1,14 @@
 """An :class:`~monovo_cli.evaluation.metrics.Evaluation` as text: the paper's Tables 10.1 and
-10.2 and the trajectory measures (``monovo eval``)."""
+10.2 and the trajectory measures (``monovo eval``); a
+:class:`~monovo_cli.evaluation.drive.DriveEvaluation` adds APE, RPE, the errors by travelled
+distance and the reported std's band (:func:`format_drive`)."""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable
 
+from monovo_cli.evaluation.drive import DriveEvaluation
 from monovo_cli.evaluation.metrics import Evaluation
 
 
@@ -62,3 +65,68 @@ def format_report(ev: Evaluation) -> str:
     lines += [f"  final drift                 {ev.final_drift_m:.6f} m = {pct} of the path",
               f"  final rotation error        {ev.final_rotation_deg:.4f} deg = {rate}"]
     return "\n".join(lines)
+
+
+def format_drive(dr: DriveEvaluation) -> str:
+    """``dr`` as text: :func:`format_report`'s tables (its first line saying how the poses
+    were paired), then the APE and RPE statistics, the KITTI-style errors over segments of
+    travelled distance and, when the reported std is at hand, the share of per-axis errors
+    inside its ±3σ band."""
+    lines = format_report(dr.evaluation).split("\n")
+    ev = dr.evaluation
+    if not dr.by_time:
+        lines[0] = (f"{ev.poses} poses paired by frame number (of {ev.estimate_poses} "
+                    f"estimated, {ev.groundtruth_poses} true), {max(ev.poses - 1, 0)} relative "
+                    f"motions, true path length {ev.distance_m:.3f} m")
+    lines += ["", *format_errors(dr)]
+    return "\n".join(lines)
+
+
+def _stats_row(label: str, stats: dict) -> str:
+    """One row of statistics in fixed notation, as many decimals as give the largest four
+    significant digits (one notation per row, so the columns compare at a glance)."""
+    keys = ("rmse", "mean", "median", "std", "max")
+    top = max((abs(stats[k]) for k in keys if math.isfinite(stats[k])), default=0.0)
+    decimals = max(0, 3 - math.floor(math.log10(top))) if top > 0 else 0
+    return f"  {label:<24}" + "".join(f"{stats[k]:>12.{decimals}f}" for k in keys)
+
+
+def format_errors(dr: DriveEvaluation) -> list[str]:
+    """The lines of :func:`format_drive` after the tables: APE, RPE, segments, std band."""
+    from monovo_cli.evaluation.metrics import error_stats
+
+    ape_what = {"none": "no alignment", "se3": "SE(3) aligned",
+                "sim3": "Sim(3) aligned"}[dr.evaluation.align]
+    lines = ["Absolute and relative pose errors (evo's APE; RPE between consecutive poses)",
+             f"  {'':<24}" + "".join(f"{k:>12}" for k in ("rmse", "mean", "median", "std",
+                                                          "max")),
+             _stats_row(f"APE, {ape_what} (m)", error_stats(dr.ape)),
+             _stats_row("RPE translation (m)", error_stats(dr.rpe_t)),
+             _stats_row("RPE rotation (deg)", error_stats(dr.rpe_r)), ""]
+    s = dr.segments.summary()
+    starts = ("every matched pose" if s["step_poses"] == 1
+              else f"every {s['step_poses']}th matched pose")
+    lines.append(f"Errors by travelled distance (KITTI-style; {starts} starts a segment of "
+                 "each length)")
+    lines.append(f"  {'segment':<12}{'pairs':>8}{'translation (%)':>18}{'rotation (deg/m)':>19}")
+
+    def row(name: str, m: dict) -> str:
+        t = "n/a" if m["translation_pct"] is None else f"{m['translation_pct']:.4f}"
+        r = "n/a" if m["rotation_deg_per_m"] is None else f"{m['rotation_deg_per_m']:.5f}"
+        return f"  {name:<12}{m['segments']:>8}{t:>18}{r:>19}"
+
+    for m in s["by_length"]:
+        lines.append(row(f"{m['length_m']:g} m", m))
+    lines.append(row("all", s))
+    if any(m["segments"] == 0 for m in s["by_length"]):
+        lines.append(f"  (n/a: the drive's {dr.evaluation.distance_m:.3g} m hold no segment "
+                     "that long)")
+    if dr.band is not None:
+        total, by_axis = dr.band.fraction_inside()
+        lines += ["", f"Reported std: errors inside ±{dr.band.sigmas:g} std "
+                      f"({len(dr.band.pose)} relative motions)"]
+        if math.isfinite(total):
+            lines.append("  " + "  ".join(f"{a} {100 * v:.1f} %" for a, v in
+                                          zip(("tx", "ty", "tz", "rx", "ry", "rz"), by_axis))
+                         + f"  all {100 * total:.1f} %")
+    return lines

@@ -67,3 +67,58 @@ def match_timestamps(ts_est: np.ndarray, ts_gt: np.ndarray, *, max_dt: float | N
                          f"within {tol:g} s of one of {names[1]} ({_span(sg)}); is it the "
                          f"ground truth of this sequence? ({hint})")
     return oe[keep], og[near[keep]]
+
+
+def match_frames(frames_est: np.ndarray, frames_gt: np.ndarray, *,
+                 names: tuple[str, str] = ("estimate", "ground truth")
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """Index arrays ``(i_est, i_gt)`` pairing poses with equal frame numbers (ints (N,) and
+    (M,)), for trajectories without timestamps (KITTI poses: frame i is line i), in the
+    estimate's order. InputError if either gives a frame twice or none is shared."""
+    fe, fg = np.asarray(frames_est, dtype=np.int64), np.asarray(frames_gt, dtype=np.int64)
+    for f, name in ((fe, names[0]), (fg, names[1])):
+        if len(f) == 0:
+            raise InputError(f"{name}: no poses")
+        u, c = np.unique(f, return_counts=True)
+        if (c > 1).any():
+            raise InputError(f"{name}: frame {int(u[c > 1][0])} is given more than once")
+    at = {int(k): j for j, k in enumerate(fg)}
+    ie = np.array([i for i, k in enumerate(fe) if int(k) in at], dtype=int)
+    if not len(ie):
+        raise InputError(f"none of the frames {int(fe.min())}..{int(fe.max())} of {names[0]} "
+                         f"is among the frames {int(fg.min())}..{int(fg.max())} of {names[1]}")
+    return ie, np.array([at[int(fe[i])] for i in ie], dtype=int)
+
+
+MIN_COVERAGE = 0.5  # a match is partial below this fraction of the estimate's poses or span
+
+
+def coverage(keys_est: np.ndarray, i_est: np.ndarray) -> tuple[float, float]:
+    """``(poses, span)``: the fractions of the estimate's poses that matched (``i_est`` of
+    ``len(keys_est)``) and of its span of timestamps or frames ``keys_est`` (N,) that the
+    matched ones cover (1 for a single-instant estimate)."""
+    keys = np.asarray(keys_est, dtype=float)
+    span = float(keys.max() - keys.min())
+    got = keys[np.asarray(i_est)]
+    covered = float(got.max() - got.min()) / span if span > 0 and len(got) else 1.0
+    return len(i_est) / len(keys), covered
+
+
+def check_coverage(keys_est: np.ndarray, i_est: np.ndarray, *, by_time: bool, max_dt: float,
+                   names: tuple[str, str] = ("estimate", "ground truth")) -> None:
+    """InputError (one line, saying how many matched and what to do) unless the matched poses
+    are at least :data:`MIN_COVERAGE` of the estimate's poses and cover at least that
+    fraction of its span (``keys_est`` (N,): timestamps s if ``by_time``, else frames)."""
+    poses, span = coverage(keys_est, i_est)
+    if poses >= MIN_COVERAGE and span >= MIN_COVERAGE:
+        return
+    keys = np.asarray(keys_est, dtype=float)
+    got = keys[np.asarray(i_est)]
+    unit = "s" if by_time else "frames"
+    how = (f"within {max_dt:g} s; max_dt sets the tolerance" if by_time
+           else "by frame number")
+    raise InputError(f"{names[0]}: only {len(i_est)} of its {len(keys)} poses match "
+                     f"{names[1]} ({how}), spanning {float(got.max() - got.min()):.4g} of its "
+                     f"{float(keys.max() - keys.min()):.4g} {unit}; if the truth is sparser than "
+                     "the estimate or covers less of the drive, allow a partial match to "
+                     "evaluate over these poses only, else check that both use one clock")

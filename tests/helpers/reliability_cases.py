@@ -318,6 +318,14 @@ def _tum_pair(edit: Callable[[list[str]], list[str]]):
     return setup
 
 
+def _gt_lines(edit: Callable[[list[str]], list[str]]):
+    """``tmp/gt.tum``: the sequence's ground truth with ``edit`` applied to its lines."""
+    def setup(tmp: Path, seq: Path) -> None:
+        lines = (seq / "groundtruth.tum").read_text().splitlines()
+        (tmp / "gt.tum").write_text("".join(ln + "\n" for ln in edit(lines)))
+    return setup
+
+
 def _shift_times(lines: list[str]) -> list[str]:
     return [" ".join([str(float(ln.split()[0]) + 0.5), *ln.split()[1:]]) for ln in lines]
 
@@ -662,10 +670,28 @@ CASES: list[Case] = [
        needs=("eval",)),
     _c("eval-empty", "eval", "an empty estimate", ("eval", "{tmp}/est.tum", "{seq}/groundtruth.tum"),
        2, ("est.tum", "no poses"), _tum_pair(lambda ls: []), needs=("eval",)),
-    _c("eval-csv-given", "eval", "trajectory.csv given instead of the .tum",
-       ("eval", "{tmp}/out/trajectory.csv", "{seq}/groundtruth.tum"), 2,
+    _c("eval-csv-given", "eval", "trajectory.csv read as TUM (--format tum)",
+       ("eval", "{tmp}/out/trajectory.csv", "{seq}/groundtruth.tum", "--format", "tum"), 2,
        ("trajectory.csv", "not a TUM trajectory", "use trajectory.tum"),
        _tracked_setup, needs=("eval",)),
+    _c("eval-sparse-truth", "eval", "a ground truth matching 2 of the 6 poses",
+       ("eval", "{tmp}/est.tum", "{tmp}/gt.tum"), 2,
+       ("only 2 of its 6 poses", "--partial"),
+       _all(_tum_pair(lambda ls: ls), _gt_lines(lambda ls: ls[::3])), needs=("eval",)),
+    _c("eval-unknown-format", "eval", "a file of 5 numbers a line",
+       ("eval", "{tmp}/est.txt", "{seq}/groundtruth.tum"), 2,
+       ("est.txt", "cannot tell its format", "--format"),
+       _write("est.txt", "0 0 0 0 1\n1 0 0 0 1\n"), needs=("eval",)),
+    _c("eval-kitti-row-short", "eval", "a KITTI pose line of 11 numbers",
+       ("eval", "{tmp}/est.txt", "{seq}/groundtruth.tum", "--format", "kitti"), 2,
+       ("est.txt", "line 2", "expected 12 numbers"),
+       _write("est.txt", "1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0 0 0 0 1\n"),
+       needs=("eval",)),
+    _c("eval-times-count", "eval", "--times with fewer timestamps than poses",
+       ("eval", "{tmp}/est.txt", "{seq}/groundtruth.tum", "--times", "{tmp}/times.txt"), 2,
+       ("times.txt", "2 timestamps for 3 poses"),
+       _all(_write("est.txt", "1 0 0 0 0 1 0 0 0 0 1 0\n" * 3), _write("times.txt", "0\n1\n")),
+       needs=("eval",)),
     _c("eval-duplicate-time", "eval", "a timestamp given twice",
        ("eval", "{tmp}/est.tum", "{seq}/groundtruth.tum"), 2, ("est.tum", "more than once"),
        _tum_pair(lambda ls: [*ls[:3], ls[2], *ls[3:]]), needs=("eval",)),
