@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from monovo_cli.core.run import TrackRun
 from monovo_cli.errors import OutputError
 from monovo_cli.evaluation.drive import DriveEvaluation, ReportedMotions, evaluate_drive
 from monovo_cli.evaluation.segments import DEFAULT_SEGMENTS, DEFAULT_STEP
@@ -94,6 +95,28 @@ def evaluate_files(est_path: Path, gt_path: Path, options: EvalOptions | None = 
                            segments=o.segments, segment_step=o.segment_step,
                            partial=o.partial, est_frames=est.frames, motions=motions,
                            names=(str(est_path), str(gt_path)))
+    return EvalResult(est, gt, drive)
+
+
+def evaluate_run(run: TrackRun, gt_path: Path, options: EvalOptions | None = None, *,
+                 name: str = "the run") -> EvalResult:
+    """:func:`evaluate_files` of a run in memory (its ``trajectory``, and its motions with
+    their reported std for the band) against ``gt_path``: what ``monovo eval`` gives on the
+    files the run writes, without reading them back. ``name`` names the run in messages."""
+    o = options or EvalOptions()
+    gt = read_pose_file(Path(gt_path), o.gt_format, times=o.gt_times)
+    frames = np.asarray(run.index, dtype=np.int64)
+    est = PoseFile(Path(name), "run", run.trajectory, run.timestamp, frames)
+    std = np.array(run.std, dtype=float)
+    std[:, 3:] = np.degrees(std[:, 3:])  # reported as motion.csv's columns: m and deg
+    motions = ReportedMotions(frames[1:], run.prev_from_cur[1:], std[1:])
+    by_time = gt.timestamps is not None
+    drive = evaluate_drive(run.timestamp if by_time else frames, run.trajectory,
+                           gt.timestamps if by_time else gt.frames, gt.world_from_cam,
+                           by_time=by_time, align=o.align, max_dt=o.max_dt,
+                           segments=o.segments, segment_step=o.segment_step,
+                           partial=o.partial, est_frames=frames, motions=motions,
+                           names=(name, str(gt_path)))
     return EvalResult(est, gt, drive)
 
 

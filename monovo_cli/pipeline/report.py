@@ -112,22 +112,24 @@ def events_table(run: TrackRun) -> str:
 
 
 def evaluation_section(run: TrackRun, groundtruth: Path) -> str:
-    """The run's trajectory against the TUM file ``groundtruth``
-    (:func:`~monovo_cli.evaluation.metrics.evaluate`, SE(3)-aligned as ``monovo eval
-    --align``) as a table of its figures; a note when it cannot be evaluated."""
-    from monovo_cli.evaluation.metrics import evaluate
-    from monovo_cli.io.formats import read_tum
+    """The run's trajectory against the ground truth file ``groundtruth`` as ``monovo eval
+    --align se3`` measures it (:func:`~monovo_cli.pipeline.evaluate.evaluate_run`): its
+    figures as a table and its plots; a note when it cannot be evaluated."""
+    from monovo_cli.pipeline.evaluate import EvalOptions, eval_plot_images, evaluate_run
 
     try:
-        ts_gt, gt = read_tum(groundtruth)
-        ev = evaluate(run.timestamp, run.trajectory, ts_gt, gt, align="se3",
-                      names=("the run", str(groundtruth)))
+        result = evaluate_run(run, groundtruth, EvalOptions(align="se3", partial=True),
+                              name="this run")
     except MonovoError as exc:
         return f'<p class="note">not evaluated: {esc(exc)}</p>'
-    rows = [[name, _number(v)] for name, v in _flat(ev.as_dict())]
-    return (f'<p class="note">against {esc(groundtruth.name)}; relative errors per axis '
-            "(m, deg), as <code>monovo eval --align</code> gives them</p>"
-            + table(("measure", "value"), rows, numeric=(False, True)))
+    d = result.as_dict()
+    d.pop("inputs", None)
+    rows = [[name, _number(v)] for name, v in _flat(d)]
+    plots = "".join(img_tag(image, name) for name, image in eval_plot_images(result).items())
+    return (f'<p class="note">against {esc(groundtruth.name)}, SE(3) aligned, as '
+            "<code>monovo eval --align</code> gives it: APE, RPE by frame and by distance "
+            "travelled, and each relative motion's error against its reported std</p>"
+            + table(("measure", "value"), rows, numeric=(False, True)) + plots)
 
 
 def record_tables(record: Mapping[str, Any]) -> str:

@@ -2,6 +2,7 @@
 
 import json
 import shutil
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -135,3 +136,35 @@ def test_the_command(tracked, tmp_path):
     assert r.exit_code == 0 and "6 poses matched" in r.output
     r = CliRunner().invoke(main, ["eval", str(out), str(gt), "--segments", "1,x"])
     assert r.exit_code == 2 and "expected positive lengths" in r.output
+
+
+def test_a_run_in_memory_evaluates_as_its_files_do(tmp_path):
+    """evaluate_run on the TrackRun gives eval's figures on the files the run wrote (up to
+    their printed precision), so report.html needs no file read back."""
+    from monovo_cli.core.options import TrackOptions
+    from monovo_cli.pipeline.evaluate import EvalOptions, evaluate_files, evaluate_run
+    from monovo_cli.pipeline.track import track_sequence
+
+    seq = Path(__file__).resolve().parents[2] / "sample_sequences" / "navcam_drive"
+    run = track_sequence(seq, None, tmp_path / "o", TrackOptions(), report=False)
+    opts = EvalOptions(align="se3")
+    mem = evaluate_run(run, seq / "groundtruth.tum", opts).as_dict()
+    files = evaluate_files(tmp_path / "o", seq / "groundtruth.tum", opts).as_dict()
+    mem.pop("inputs"), files.pop("inputs")
+    flat_mem, flat_files = _flat(mem), _flat(files)
+    assert flat_mem.keys() == flat_files.keys() and len(flat_mem) > 20
+    for key, value in flat_mem.items():
+        assert value == pytest.approx(flat_files[key], rel=1e-4, abs=1e-6), key
+
+
+def _flat(d, prefix=""):
+    out = {}
+    for k, v in d.items():
+        if isinstance(v, dict):
+            out.update(_flat(v, f"{prefix}{k}."))
+        elif isinstance(v, (int, float)) and v is not None:
+            out[prefix + k] = v
+        elif isinstance(v, list) and all(isinstance(x, (int, float)) for x in v):
+            for i, x in enumerate(v):
+                out[f"{prefix}{k}.{i}"] = x
+    return out
