@@ -86,6 +86,7 @@ def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, ski
     if s is None:
         if not verbosity.quiet:
             click.echo(f"nothing to resume: the run in {out} is finished")
+        _exit_as_finished(Path(out))
         return
     if not verbosity.quiet:
         click.echo(f"tracked {s.frames} frames in {s.seconds:.1f} s ({s.fps:.1f} frames/s): "
@@ -97,4 +98,18 @@ def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, ski
         where = "streamed rows kept" if to_stdout else f"outputs kept in {out}"
         click.echo(f"monovo: {s.lost} of {s.frames - 1} frames lost (more than half); {where}",
                    err=True)
+        click.get_current_context().exit(3)
+
+
+def _exit_as_finished(out: Path) -> None:
+    """A finished run found again by --resume exits as it did: 3 when more than half of its
+    frames (motion.csv's rows) were lost, so a retry loop sees the same outcome."""
+    from monovo_cli.core.status import FrameStatus
+    from monovo_cli.io.formats import read_motion_stats
+
+    statuses = [status for status, _ in read_motion_stats(out / "motion.csv").values()]
+    lost = sum(s == FrameStatus.LOST for s in statuses)
+    if lost > 0.5 * len(statuses):
+        click.echo(f"monovo: {lost} of {len(statuses)} frames lost (more than half); outputs "
+                   f"kept in {out}", err=True)
         click.get_current_context().exit(3)

@@ -202,3 +202,23 @@ def test_a_damaged_checkpoint_is_one_line(seq, tmp_path):
                 "--resume")
     assert r.exit_code == 2 and "not a readable checkpoint" in r.output, r.output
     assert r.output.count("\n") == 1
+
+
+def test_resume_of_a_finished_mostly_lost_run_exits_as_it_did(seq, tmp_path):
+    """A retry loop that resumes a finished run sees its outcome again: exit 3 when more than
+    half of its frames were lost, as the run itself exited."""
+    import cv2
+
+    lossy = tmp_path / "lossy"
+    shutil.copytree(seq, lossy)
+    frames = sorted((lossy / "frames").glob("*.png"))
+    assert len(frames) > 10
+    rng = np.random.default_rng(0)
+    for p in frames[2:]:
+        shape = cv2.imread(str(p), cv2.IMREAD_GRAYSCALE).shape
+        cv2.imwrite(str(p), rng.integers(0, 256, shape).astype(np.uint8))
+    out = tmp_path / "out"
+    first = CliRunner().invoke(main, ["track", str(lossy), "-o", str(out), "-q"])
+    assert first.exit_code == 3, first.output
+    again = CliRunner().invoke(main, ["track", str(lossy), "-o", str(out), "--resume", "-q"])
+    assert again.exit_code == 3 and "frames lost (more than half)" in again.output
