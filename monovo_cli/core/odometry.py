@@ -80,6 +80,9 @@ class FrameResult:
     reason: str = ""
 
 
+PREDICTION_WINDOW = 30  # accepted frames whose motion changes measure the prediction's error
+STANDING_SHARE = 0.2  # a lost frame with no motion seen yet: std of each translation, x distance
+STANDING_DEG = 10.0  # ... and of each rotation, deg
 CHANCE_SHARE = 0.5  # a fit leaving half the keyframe's intensity variance is no fit
 REINIT_NOISE_SHARE = 0.3  # a fresh keyframe needs noise below this share of the contrast
 
@@ -135,6 +138,11 @@ class Odometry:
                                   region=region)  # the feature hypothesis
         self._key_msd: float | None = None  # msd of the first frame fitted to the keyframe
         self._lost_run = 0  # frames lost in a row
+        # the prediction's uncertainty (lost rows): the accepted motions' changes from one
+        # frame to the next, (tx, ty, tz, rx, ry, rz) m and rad, and the last accepted motion
+        self._motion_changes: deque[np.ndarray] = deque(maxlen=PREDICTION_WINDOW)
+        self._last_motion: np.ndarray | None = None
+        self._last_std, self._last_accepted = np.zeros(6), -2
         self._started = False
         self._announced: Keyframe | None = None  # the keyframe :meth:`advance` last reported
 
@@ -283,6 +291,10 @@ class Odometry:
                                   @ key.world_from_key @ se3_inv(orthonormalize(tracked.cur_from_key)))
             cov = cov + np.outer(jump, jump)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+        motion = _motion_change(prev_from_cur, np.eye(4))
+        if self._last_motion is not None and self._last_accepted == index - 1:
+            self._motion_changes.append(np.abs(motion - self._last_motion))
+        self._last_motion, self._last_std, self._last_accepted = motion, std, index
         self._velocity = se3_inv(prev_from_cur)
         self._world_from_prev = world_from_cur
         self._cur_from_key_prev = cur_from_key
@@ -304,21 +316,43 @@ class Odometry:
               est: Estimate | None = None) -> FrameResult:
         """The prediction, or the feature hypothesis where it contradicts it
         (:mod:`monovo_cli.core.recovery.lost_frames`)."""
-        cur_from_key = self._recovery.lost_pose(
-            index, orthonormalize(self._velocity @ self._cur_from_key_prev))
+        predicted = orthonormalize(self._velocity @ self._cur_from_key_prev)
+        cur_from_key = self._recovery.lost_pose(index, predicted)
         world_from_cur = orthonormalize(self._key.world_from_key @ se3_inv(cur_from_key))
         prev_from_cur = orthonormalize(se3_inv(self._world_from_prev) @ world_from_cur)
         self._world_from_prev = world_from_cur
         self._cur_from_key_prev = cur_from_key
         self._state = OdometryState.RECOVERING
         self._lost_run += 1
+        std = self._prediction_std(_motion_change(cur_from_key, predicted))
         msd = est.msd if est is not None and np.isfinite(est.msd) else 0.0
         its = est.iterations if est is not None else 0
         pts = est.points if est is not None else 0
         return FrameResult(index, timestamp, world_from_cur, prev_from_cur, msd, its, pts,
-                           FrameStatus.LOST,
-                           np.full(6, np.nan), np.full((6, 6), np.nan), self._key.index,
+                           FrameStatus.LOST, std, np.diag(std ** 2), self._key.index,
                            self._gain, self._bias, reason)
+
+    def _prediction_std(self, bridged: np.ndarray) -> np.ndarray:
+        """(6,) m and rad: the std of a lost frame's motion, the prediction's uncertainty.
+
+        The prediction repeats the last accepted motion, so its error is the change of the
+        motion since: per axis the larger of the RMS and the largest of the recent accepted
+        frames' changes (PREDICTION_WINDOW of them), grown as a random walk with the frames
+        lost in a row, added to the last accepted motion's own std. Without such a history
+        (the first frames) the motion itself, or at a standing start a fraction of the
+        ground's distance and STANDING_DEG, stands for it. ``bridged`` (6,): how far the pose
+        taken (the feature hypothesis') is from the prediction, added as a further error.
+        """
+        if len(self._motion_changes) >= 3:
+            changes = np.array(self._motion_changes)
+            step = np.maximum(np.sqrt(np.mean(changes ** 2, axis=0)), changes.max(axis=0))
+        elif self._last_motion is not None:
+            step = np.abs(self._last_motion)
+        else:
+            d = self._key.plane.distance
+            step = np.r_[np.full(3, STANDING_SHARE * d), np.full(3, np.radians(STANDING_DEG))]
+        spread = step * np.sqrt(self._lost_run)
+        return np.sqrt(spread ** 2 + self._last_std ** 2 + bridged ** 2)
 
     # -- checks -----------------------------------------------------------------------
     def _search(self, key: Keyframe, pyr: list[np.ndarray], guess: np.ndarray) -> np.ndarray:

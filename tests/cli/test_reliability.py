@@ -22,6 +22,7 @@ import pytest
 from click.testing import CliRunner
 
 from monovo_cli.cli import main
+from monovo_cli.io.formats import read_motion_csv
 from monovo_cli.synth.write import synthesize
 from tests.helpers.reliability_cases import CASES, Outcome, make_base_sequence, run_case
 
@@ -101,7 +102,13 @@ def test_skip_bad_frames_records_lost_and_goes_on(base_seq, tmp_path):
     rows = list(csv.DictReader((tmp_path / "out" / "motion.csv").open()))
     assert [int(r["frame"]) for r in rows] == [1, 2, 3, 4, 5]
     assert [r["status"] for r in rows][2] == "lost"
-    assert rows[2]["points"] == "0" and rows[2]["std_tx"] == ""
+    assert rows[2]["points"] == "0"
+    # its std states the prediction's uncertainty (SPEC.md): finite, and covering its error
+    std = np.array([float(rows[2][f"std_{k}"]) for k in ("tx", "ty", "tz", "rx", "ry", "rz")])
+    assert np.all(std > 0) and np.all(np.isfinite(std))
+    _, gt, _ = read_motion_csv(base_seq / "groundtruth_motion.csv")
+    err = np.abs(np.array([float(rows[2][k]) for k in ("tx", "ty", "tz")]) - gt[2][:3, 3])
+    assert np.all(err < 4 * std[:3]), (err, std)
     assert "nan" not in (tmp_path / "out" / "motion.csv").read_text().lower()
     traj = (tmp_path / "out" / "trajectory.tum").read_text().split()
     assert len(traj) == 6 * 8 and all(math.isfinite(float(v)) for v in traj)
