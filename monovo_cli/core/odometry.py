@@ -143,6 +143,8 @@ class Odometry:
         self._motion_changes: deque[np.ndarray] = deque(maxlen=PREDICTION_WINDOW)
         self._last_motion: np.ndarray | None = None
         self._last_std, self._last_accepted = np.zeros(6), -2
+        # the variance the lost frames since the last accepted one left in the previous pose
+        self._gap_variance = np.zeros(6)
         self._started = False
         self._announced: Keyframe | None = None  # the keyframe :meth:`advance` last reported
 
@@ -290,6 +292,9 @@ class Odometry:
             jump = _motion_change(prev_from_cur, se3_inv(self._world_from_prev)
                                   @ key.world_from_key @ se3_inv(orthonormalize(tracked.cur_from_key)))
             cov = cov + np.outer(jump, jump)
+        if self._gap_variance.any():  # the previous pose was only predicted: its error is ours
+            cov = cov + np.diag(self._gap_variance)
+            self._gap_variance = np.zeros(6)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         motion = _motion_change(prev_from_cur, np.eye(4))
         if self._last_motion is not None and self._last_accepted == index - 1:
@@ -325,6 +330,7 @@ class Odometry:
         self._state = OdometryState.RECOVERING
         self._lost_run += 1
         std = self._prediction_std(_motion_change(cur_from_key, predicted))
+        self._gap_variance = self._gap_variance + std ** 2
         msd = est.msd if est is not None and np.isfinite(est.msd) else 0.0
         its = est.iterations if est is not None else 0
         pts = est.points if est is not None else 0
@@ -470,6 +476,7 @@ class Odometry:
         for plane in (self._key.plane.in_frame(cur_from_key), self._plane0):
             if self._reanchor(index, image, pyr, res.world_from_cam, plane):
                 self._lost_run = 0
+                self._gap_variance = np.zeros(6)  # the next motions are from this keyframe
                 self._recent_msd.clear()  # a fresh start: no msd history yet
                 return replace(res, status=FrameStatus.REINIT, keyframe=self._key.index,
                                reason=f"re-initialised after {lost_for} lost frames ({reason})")

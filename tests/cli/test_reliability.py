@@ -109,6 +109,10 @@ def test_skip_bad_frames_records_lost_and_goes_on(base_seq, tmp_path):
     _, gt, _ = read_motion_csv(base_seq / "groundtruth_motion.csv")
     err = np.abs(np.array([float(rows[2][k]) for k in ("tx", "ty", "tz")]) - gt[2][:3, 3])
     assert np.all(err < 4 * std[:3]), (err, std)
+    # the next frame's motion starts from that predicted pose: its std carries its error too
+    std4 = np.array([float(rows[3][f"std_{k}"]) for k in ("tx", "ty", "tz")])
+    err4 = np.abs(np.array([float(rows[3][k]) for k in ("tx", "ty", "tz")]) - gt[3][:3, 3])
+    assert np.all(err4 < 4 * std4) and np.all(std4 >= std[:3]), (err4, std4)
     assert "nan" not in (tmp_path / "out" / "motion.csv").read_text().lower()
     traj = (tmp_path / "out" / "trajectory.tum").read_text().split()
     assert len(traj) == 6 * 8 and all(math.isfinite(float(v)) for v in traj)
