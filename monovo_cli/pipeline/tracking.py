@@ -129,7 +129,6 @@ class Tracking:
     ``stopped(index)`` adds to the message of a frame that cannot be read what was kept;
     ``rerun_replaces`` says in it that the rerun it suggests (recording unreadable frames as
     lost) must be allowed to replace the outputs written so far.
-    ``stopped(index)`` adds to the message of a frame that cannot be read what was kept.
     ``thumbnails`` > 0 keeps a small grey copy (uint8, at most ``thumbnail_side`` px on its
     longer side) of at most that many keyframes' images (:attr:`thumbnails`, frame index ->
     image): when there are more, every other one is dropped, frame 0 kept, so those kept
