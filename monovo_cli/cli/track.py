@@ -104,12 +104,12 @@ def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, ski
 def _exit_as_finished(out: Path) -> None:
     """A finished run found again by --resume exits as it did: 3 when more than half of its
     frames (motion.csv's rows) were lost, so a retry loop sees the same outcome."""
-    from monovo_cli.core.status import FrameStatus
+    from monovo_cli.core.status import FrameStatus, mostly_lost
     from monovo_cli.io.formats import read_motion_stats
 
     statuses = [status for status, _ in read_motion_stats(out / "motion.csv").values()]
     lost = sum(s == FrameStatus.LOST for s in statuses)
-    if lost > 0.5 * len(statuses):
+    if mostly_lost(lost, len(statuses)):
         click.echo(f"monovo: {lost} of {len(statuses)} frames lost (more than half); outputs "
                    f"kept in {out}", err=True)
         click.get_current_context().exit(3)

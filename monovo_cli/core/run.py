@@ -14,7 +14,7 @@ import numpy as np
 
 from monovo_cli.core.keyframe import Keyframe
 from monovo_cli.core.plane.belief import PlaneLink
-from monovo_cli.core.status import FrameStatus
+from monovo_cli.core.status import FrameStatus, mostly_lost
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.geometry.trajectory import path_length
 
@@ -94,7 +94,7 @@ class TrackRun:
     @property
     def mostly_lost(self) -> bool:
         """More than half of the tracked frames (k >= 1) lost (``monovo track`` exits 3)."""
-        return self.lost > 0.5 * max(self.frames - 1, 0)
+        return mostly_lost(self.lost, self.frames - 1)
 
     @property
     def mean_msd(self) -> float:

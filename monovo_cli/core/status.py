@@ -20,3 +20,9 @@ class FrameStatus(str, Enum):
 
     __str__ = str.__str__      # the value, not "FrameStatus.OK", on every Python version
     __format__ = str.__format__
+
+
+def mostly_lost(lost: int, tracked: int) -> bool:
+    """Whether ``lost`` of ``tracked`` frames (those after frame 0) is more than half: the run
+    failed on its data (``monovo track`` exits 3, batch records the sequence failed)."""
+    return lost > 0.5 * max(tracked, 0)

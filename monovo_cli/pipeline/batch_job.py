@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from monovo_cli.core.options import TrackOptions
+from monovo_cli.core.status import mostly_lost
 from monovo_cli.errors import InputError, MonovoError, OutputError
 from monovo_cli.io.atomic import digests_recorded
 from monovo_cli.version import __version__
@@ -350,7 +351,7 @@ def recorded_failure(out_dir: str | Path) -> str | None:
         return None if outcome["status"] == "ok" else outcome["error"]
     stats = marker["result"]
     lost, frames = stats["lost"], stats["frames"]
-    if lost > 0.5 * max(frames - 1, 0):
+    if mostly_lost(lost, frames - 1):
         return f"{lost} of {frames - 1} frames lost (more than half)"
     return None
 

@@ -226,16 +226,13 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                         thumbnail_side=THUMBNAIL_SIDE,
                         rerun_replaces=out_dir is not None)
 
-    index: list[int] = []  # the frames done, in order, and their times
-    times: list[float] = []
     if saved is not None:
         tracking.restore(saved.state)
-        index += saved.state.recorder.index
-        times += saved.state.recorder.timestamp
 
     def write_trajectory(poses: np.ndarray) -> None:
         if out_dir is None or not len(poses):
             return
+        index, times = tracking.frames_recorded()
         atomic_write_text(Path(out_dir) / "trajectory.csv", trajectory_csv_text(index, times, poses))
         atomic_write_text(Path(out_dir) / "trajectory.tum", tum_text(times, poses))
 
@@ -266,8 +263,6 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
         for res in tracking.results(record=False):
             with _signals_held():
                 tracking.record(res)
-                index.append(res.index)
-                times.append(res.timestamp)
                 if res.index > 0:
                     writer.write(_row(res))
                     if cov_writer is not None:

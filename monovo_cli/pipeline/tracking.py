@@ -239,6 +239,10 @@ class Tracking:
         """Add ``res`` to the run (:meth:`results` with ``record=False``)."""
         self._recorder.add(res)
 
+    def frames_recorded(self) -> tuple[list[int], list[float]]:
+        """The indices and timestamps (s) of the frames recorded so far, in order."""
+        return self._recorder.index, self._recorder.timestamp
+
     @property
     def done(self) -> int:
         """The frames recorded so far."""
