@@ -28,11 +28,9 @@ import os
 import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import TypeVar
 
 log = logging.getLogger(__name__)
 
-T = TypeVar("T")
 
 # (a part of the library's file name, its (get, set) thread-count functions by the names
 # its builds export: numpy's and SciPy's wheels prefix and suffix OpenBLAS's symbols)
@@ -118,15 +116,3 @@ def one_blas_thread() -> Iterator[None]:
             if _depth == 0:
                 for set_, count in _saved:
                     set_(max(count, 1))
-
-
-def each_on_one_blas_thread(items: Iterator[T]) -> Iterator[T]:
-    """The items of ``items``, each computed under :func:`one_blas_thread`; the caller's
-    own work between them keeps the BLAS threads."""
-    while True:
-        with one_blas_thread():
-            try:
-                item = next(items)
-            except StopIteration:
-                return
-        yield item
