@@ -283,6 +283,10 @@ _TRACK_OPTIONS = {
         "--plane-only", "terrain_grid", field="terrain_grid", flag_value=False,
         help="Keep the paper's one plane per keyframe: no terrain grid (heights on a grid) solved "
              "with the motion where the ground is not flat."),
+    "keep_initial_tilt": _track_option(
+        "--keep-tilt", "keep_initial_tilt", field="keep_initial_tilt", flag_value=True,
+        help="Keep init.yaml's ground tilt for frame 0 even where the first frames' images "
+             "contradict it (the measured tilt is still logged at -v and kept in run.yaml)."),
     "max_step": _track_option(
         "--max-step", field=("max_step_m", "max_step_deg"), callback=parse_max_step,
         metavar="M[,DEG]",
@@ -291,7 +295,7 @@ _TRACK_OPTIONS = {
 #: The options of the ground model and the estimator (init).
 MODEL = ("levels", "threshold", "max_points", "robust", "reanchor_fraction")
 #: ... and of the sequence loop (track, batch).
-LOOP = (*MODEL, "photometric", "terrain_grid", "max_step")
+LOOP = (*MODEL, "photometric", "terrain_grid", "keep_initial_tilt", "max_step")
 
 
 def track_options(names: tuple[str, ...]):

@@ -46,10 +46,14 @@ def _default(name: str):
 @click.option("--clean-frame0", is_flag=True,
               help="Frame 0 (of the drive, of each pair) without noise: the paper's synthetic "
                    "experiment, where the ground's texture is exactly known.")
+@click.option("--init-pose", type=click.Choice(["frame0", "nominal"]), cls=LibraryDefault,
+              default_text=_default("init_pose"),
+              help="What init.yaml's ground holds for a drive: frame 0's true ground, or the "
+                   "rover's nominal mount (written with 'ground.nominal: true').")
 @overwrite_option("Replace OUT if it exists.")
 @common
 def synth(verbosity, out, preset, frames, size, terrain, noise_var, seed, texture, max_translation,
-          exposure, clean_frame0, overwrite):
+          exposure, clean_frame0, init_pose, overwrite):
     """Write a synthetic sequence with ground truth into OUT."""
     from monovo_cli.synth.write import synthesize
 
@@ -68,6 +72,6 @@ def synth(verbosity, out, preset, frames, size, terrain, noise_var, seed, textur
         s = synthesize(out, frames=frames, size=size, texture=texture, terrain=terrain,
                        max_translation=max_translation, exposure=exposure,
                        clean_frame0=clean_frame0, progress=bar,
-                       **given(preset=preset, noise_var=noise_var, seed=seed))
+                       **given(preset=preset, noise_var=noise_var, seed=seed, init_pose=init_pose))
     if not verbosity.quiet:
         click.echo(f"wrote {s.sequences} sequence(s) of {s.frames_per_sequence} frames to {out}")

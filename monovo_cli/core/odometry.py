@@ -44,7 +44,7 @@ from monovo_cli.core.keyframe import Keyframe, build_keyframe, footprint
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane.belief import PlaneLink
 from monovo_cli.core.plane.motion_covariance import MotionCovariance
-from monovo_cli.core.plane.tracker import PlaneTracker
+from monovo_cli.core.plane.tracker import InitialTilt, Mounting, PlaneTracker
 from monovo_cli.core.recovery.lost_frames import LostFrameRecovery
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import TrackingError
@@ -104,22 +104,24 @@ class Odometry:
     the camera to the ground, distance m); ``region`` ``(x0, y0, x1, y1)`` px, the image part
     the ground model covers; ``mask`` (H, W), non-zero where pixels are usable;
     ``first_keyframe`` a ground model built earlier (``monovo init``), else built from frame
-    0; ``sigma_distance`` (m), ``sigma_deg``: the mounting prior's width (init.yaml's ground
-    section; None: the defaults of :func:`~monovo_cli.core.plane.belief.default_sigmas`).
+    0; ``mounting`` what init.yaml says of the ground besides frame 0's plane
+    (:class:`~monovo_cli.core.plane.tracker.Mounting`; None: frame 0's plane exact, the mean
+    mount latent, the prior's width the defaults).
     Call :meth:`start` with frame 0, then :meth:`step` (or :meth:`skip`) per frame, or
     :meth:`advance` with every frame.
     """
 
     def __init__(self, camera: PinholeCamera, plane: Plane, region: tuple[int, int, int, int],
                  options: TrackOptions | None = None, *, mask: np.ndarray | None = None,
-                 first_keyframe: Keyframe | None = None, sigma_distance: float | None = None,
-                 sigma_deg: float | None = None) -> None:
+                 first_keyframe: Keyframe | None = None,
+                 mounting: Mounting | None = None) -> None:
         self.camera = camera
         self.region = region
         self.options = options or TrackOptions()
         self.mask = mask
         self._plane0 = plane
-        self._plane = PlaneTracker(plane, sigma_distance, sigma_deg)
+        self._plane = PlaneTracker(plane, mounting,
+                                   keep_initial_tilt=self.options.keep_initial_tilt)
         self._key: Keyframe | None = first_keyframe
         self._world_from_prev = np.eye(4)
         self._cur_from_key_prev = np.eye(4)
@@ -152,6 +154,11 @@ class Odometry:
     def keyframe(self) -> Keyframe | None:
         """The current keyframe (None before :meth:`start`)."""
         return self._key
+
+    @property
+    def initial_tilt(self) -> InitialTilt | None:
+        """The images' verdict on init.yaml's tilt, once measured on the first frames."""
+        return self._plane.initial_tilt
 
     @property
     def state(self) -> OdometryState:
@@ -259,8 +266,8 @@ class Odometry:
     # -- outcomes ---------------------------------------------------------------------
     def _accept(self, index: int, timestamp: float, image: np.ndarray, pyr: list[np.ndarray],
                 est: Estimate) -> FrameResult:
-        if self._plane.unsettled and self._key.index != index:
-            est = self._settle_plane(pyr, est)
+        if self._plane.wants_test(self._key, index):
+            est = self._settle_plane(index, pyr, est)
         key = self._key
         status = FrameStatus.OK
         recovering = self._state is OdometryState.RECOVERING
@@ -414,10 +421,10 @@ class Odometry:
         return (degraded or est.valid_fraction < self.options.reanchor_fraction
                 or footprint(self.camera, corners_cur) < self.options.min_footprint)
 
-    def _settle_plane(self, pyr: list[np.ndarray], est: Estimate) -> Estimate:
+    def _settle_plane(self, index: int, pyr: list[np.ndarray], est: Estimate) -> Estimate:
         """PlaneTracker.test; a corrected plane's keyframe is kept if its estimate passes, from
         the top level if level 2's fails (``est``, fitted over the old plane, can be far off)."""
-        found = self._plane.test(self._key, self._key_image, pyr, est, self.camera,
+        found = self._plane.test(index, self._key, self._key_image, pyr, est, self.camera,
                                  self.region, self.options, self.mask)
         if found is None:
             return est
@@ -466,14 +473,14 @@ class Odometry:
                 reason: str) -> FrameResult:
         """Frames stay lost: anchor a fresh keyframe on this one at the predicted pose.
 
-        The plane is the current keyframe's carried to the prediction, or the mounting plane
-        (init.yaml's, relative to the camera) when that one does not meet the region's rays
+        The plane is the current keyframe's carried to the prediction, or the mount's plane
+        (relative to the camera) when that one does not meet the region's rays
         in front of the camera; the gap since the last good frame is bridged by the
         prediction. A frame that cannot carry a keyframe stays lost."""
         lost_for = self._lost_run
         res = self._lost(index, timestamp, reason)
         cur_from_key = self._cur_from_key_prev
-        for plane in (self._key.plane.in_frame(cur_from_key), self._plane0):
+        for plane in (self._key.plane.in_frame(cur_from_key), self._plane.mount_plane):
             if self._reanchor(index, image, pyr, res.world_from_cam, plane):
                 self._lost_run = 0
                 self._gap_variance = np.zeros(6)  # the next motions are from this keyframe
@@ -494,7 +501,7 @@ def estimate_frames(frames: Iterable[tuple[int, float, np.ndarray | None]], came
                     options: TrackOptions | None = None, *, mask: np.ndarray | None = None,
                     first_keyframe: Keyframe | None = None,
                     priors: Mapping[int, np.ndarray] | None = None,
-                    sigma_distance: float | None = None, sigma_deg: float | None = None,
+                    mounting: Mounting | None = None,
                     on_keyframe: Callable[[Keyframe], None] | None = None) -> Iterator[FrameResult]:
     """Yield a :class:`FrameResult` per ``(index, timestamp, image)``, frame 0 first: the
     sequence through :meth:`Odometry.advance`.
@@ -502,11 +509,11 @@ def estimate_frames(frames: Iterable[tuple[int, float, np.ndarray | None]], came
     ``image`` (H, W) float32, or None for a frame that could not be read (recorded lost at
     the prediction); frame 0 must have one (it carries the ground model unless
     ``first_keyframe`` is given). ``priors`` maps a frame index to its prior motion
-    T_{k-1}_k (4x4); ``sigma_distance``/``sigma_deg`` the mounting prior's width;
+    T_{k-1}_k (4x4); ``mounting`` what init.yaml says of the ground (:class:`Odometry`);
     ``on_keyframe(keyframe)`` is called for every keyframe anchored (or rebuilt in place).
     """
     odo = Odometry(camera, plane, region, options, mask=mask, first_keyframe=first_keyframe,
-                   sigma_distance=sigma_distance, sigma_deg=sigma_deg)
+                   mounting=mounting)
     for index, ts, image in frames:
         res, keys = odo.advance(index, ts, image, (priors or {}).get(index))
         if on_keyframe is not None:

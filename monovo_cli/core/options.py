@@ -120,6 +120,9 @@ class TrackOptions:
     With ``terrain_grid``, a keyframe that is left gets the heights of its ground off its plane,
     solved with the motion of the frame that leaves it where the images show them
     (:mod:`monovo_cli.core.estimator.terrain_grid`); they are carried to the next keyframe.
+    ``keep_initial_tilt`` keeps init.yaml's ground tilt for frame 0 even where init.yaml says
+    it is uncertain (``ground.nominal``) and the images contradict it; the images' measurement
+    is still reported.
     """
 
     levels: int | None = None
@@ -140,6 +143,7 @@ class TrackOptions:
     max_step_m: float | None = None
     max_step_deg: float | None = None
     terrain_grid: bool = True
+    keep_initial_tilt: bool = False
     estimator: EstimatorOptions = field(default_factory=EstimatorOptions)
     features: FeatureOptions = field(default_factory=_tracking_features)
 

@@ -11,9 +11,15 @@ are in :mod:`monovo_cli.io.yaml_fields`).
 Instead of ``normal`` + ``distance`` the ground may be given as ``height`` (m),
 ``pitch_deg`` and optional ``roll_deg`` (the convention is in
 :mod:`monovo_cli.geometry.plane`; roll 0 gives ``normal = (0, cos p, sin p)``).
-The optional ``sigma_distance`` (m) and ``sigma_deg`` give the width of the mounting prior:
-how far the ground may depart from this plane in any later camera frame (suspension,
-terrain); absent, the tracker's defaults apply (:mod:`monovo_cli.core.plane.belief`).
+``ground`` is frame 0's ground, exact unless ``ground.std_distance`` (m) and/or
+``ground.std_deg`` state its uncertainty. The optional ``sigma_distance`` (m) and ``sigma_deg``
+give the width of the mounting prior: how far the ground under the rover departs from its
+mean mount (suspension, terrain); absent, the tracker's defaults apply
+(:mod:`monovo_cli.core.plane.belief`). The mean mount is estimated from the drive, unless it
+is declared: ``ground.nominal: true`` says the plane is the nominal mount (frame 0's ground
+then known only to the prior's width), and a top-level ``mount:`` block (``normal`` +
+``distance`` or ``height`` + ``pitch_deg`` [+ ``roll_deg``]) gives it beside frame 0's ground
+(:class:`~monovo_cli.core.plane.tracker.Mounting`).
 """
 
 from __future__ import annotations
@@ -24,13 +30,14 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import yaml
 
+from monovo_cli.core.plane.tracker import Mounting
 from monovo_cli.errors import ConfigError
 from monovo_cli.geometry.camera import PinholeCamera
-from monovo_cli.geometry.plane import Plane, normal_from_pitch_roll
+from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.atomic import atomic_write_text
+from monovo_cli.io.init_ground import Region, ground_section, initial_pose, sigmas
 from monovo_cli.io.yaml_fields import (
     UniqueKeyLoader,
     check_keys,
@@ -48,20 +55,11 @@ from monovo_cli.io.yaml_fields import (
 
 log = logging.getLogger(__name__)
 
-TOP_KEYS = ("camera", "camera_file", "ground")
+TOP_KEYS = ("camera", "camera_file", "ground", "mount")
 CAMERA_KEYS = ("width", "height", "fx", "fy", "cx", "cy", "distortion")
-GROUND_KEYS = ("normal", "distance", "height", "pitch_deg", "roll_deg", "region",
-               "sigma_distance", "sigma_deg")
-MAX_SIGMA_DEG = 45.0  # ground.sigma_deg: a wider prior on the tilt says nothing
 
 MAX_IMAGE_SIDE = 100_000        # px; larger is certainly a typo
-MIN_REGION_FRACTION = 0.01      # the ground region must cover >= 1% of the image
-MIN_RAY_DOT = 1e-6              # n . ray at a region pixel: the ray must hit the plane
-MAX_DEPTH_RATIO = 1e4           # region depth / plane distance: beyond this, too oblique
-UNIT_TOLERANCE = 1e-6           # |normal| further than this from 1 is normalised (warning)
 
-
-Region = tuple[int, int, int, int]
 
 
 @dataclass(frozen=True)
@@ -72,7 +70,9 @@ class InitConfig:
     ``(x0, y0, x1, y1)`` (px, x1 and y1 exclusive) the ground model covers at frame 0 (the
     whole frame when init.yaml gives none). ``sigma_distance`` (m) and ``sigma_deg``: the
     mounting prior's width (``ground.sigma_distance``, ``ground.sigma_deg``), None when
-    init.yaml does not give it.
+    init.yaml does not give it. ``nominal``: ``plane`` is the nominal mount rather than
+    frame 0's ground; ``mount`` a nominal mount declared beside it (``mount:``);
+    ``std_distance`` (m) and ``std_deg`` frame 0's stated uncertainty (None: exact).
     """
 
     camera: PinholeCamera
@@ -81,6 +81,33 @@ class InitConfig:
     path: Path
     sigma_distance: float | None = None
     sigma_deg: float | None = None
+    nominal: bool = False
+    mount: Plane | None = None
+    std_distance: float | None = None
+    std_deg: float | None = None
+
+    @property
+    def mounting(self) -> Mounting:
+        """What the tracker takes from this file besides frame 0's plane."""
+        if self.nominal:
+            return Mounting.nominal(self.plane, self.sigma_distance, self.sigma_deg)
+        initial = None
+        if self.std_distance is not None or self.std_deg is not None:
+            from monovo_cli.core.plane.belief import EXACT_STD
+
+            initial = (self.std_distance if self.std_distance is not None
+                       else EXACT_STD * self.plane.distance,
+                       self.std_deg if self.std_deg is not None else math.degrees(EXACT_STD))
+        return Mounting(self.sigma_distance, self.sigma_deg, mount=self.mount,
+                        initial_std=initial)
+
+    @property
+    def convention(self) -> str:
+        """How the file's ground reads, in words (for run.yaml and messages)."""
+        if self.nominal:
+            return "nominal mount"
+        return "frame 0's ground, mount declared" if self.mount is not None else \
+            "frame 0's ground, mean mount estimated"
 
 
 # ----------------------------------------------------------------------------- parsing
@@ -180,140 +207,8 @@ def _camera_info(init_name: str, base_dir: Path, value: Any) -> PinholeCamera:
     return PinholeCamera(size[0], size[1], fx, fy, cx, cy, dist)
 
 
-def _unit_normal(name: str, value: Any) -> tuple[float, float, float]:
-    v = np.array(numbers(name, "ground.normal", value, (3,), "a list of 3 numbers [nx, ny, nz]"))
-    scale = float(np.max(np.abs(v)))
-    if scale == 0.0:
-        raise fail(name, "ground.normal must not be zero-length; give the unit normal "
-                          "pointing from the camera to the ground")
-    u = v / scale
-    length = float(np.linalg.norm(u)) * scale
-    if abs(length - 1.0) > 1e-12:  # not unit to float precision (keeps round trips exact)
-        u = u / np.linalg.norm(u)
-        if abs(length - 1.0) > UNIT_TOLERANCE:
-            log.warning("%s: ground.normal %s has length %.6g; normalised to unit length",
-                        name, [float(c) for c in v], length)
-    else:
-        u = v
-    return (float(u[0]), float(u[1]), float(u[2]))
-
-
-def _region(name: str, value: Any, width: int, height: int) -> Region:
-    if value is None:
-        return (0, 0, width, height)
-    if not isinstance(value, (list, tuple)) or len(value) != 4:
-        raise fail(name, f"ground.region must be a list of 4 whole numbers [x0, y0, x1, y1] (px), "
-                          f"got {show(value)}")
-    x0, y0, x1, y1 = (integer(name, f"ground.region[{i}]", v) for i, v in enumerate(value))
-    shown = f"[{x0}, {y0}, {x1}, {y1}]"
-    if x0 >= x1 or y0 >= y1:
-        raise fail(name, f"ground.region {shown} is empty or inverted (need x0 < x1 and y0 < y1)")
-    if x0 < 0 or y0 < 0 or x1 > width or y1 > height:
-        raise fail(name, f"ground.region {shown} extends outside the {width}x{height} image "
-                          f"(need 0 <= x0 < x1 <= {width} and 0 <= y0 < y1 <= {height})")
-    fraction = (x1 - x0) * (y1 - y0) / (width * height)
-    if fraction < MIN_REGION_FRACTION:
-        raise fail(name, f"ground.region {shown} covers {100 * fraction:.2g}% of the image; "
-                          f"make it at least {100 * MIN_REGION_FRACTION:g}%")
-    return (x0, y0, x1, y1)
-
-
-def _sigmas(name: str, g: dict) -> tuple[float | None, float | None]:
-    """``ground.sigma_distance`` (m, > 0) and ``ground.sigma_deg`` (in (0, MAX_SIGMA_DEG])."""
-    sd = sdeg = None
-    if g.get("sigma_distance") is not None:
-        sd = positive(name, "ground.sigma_distance", g["sigma_distance"])
-    if g.get("sigma_deg") is not None:
-        sdeg = positive(name, "ground.sigma_deg", g["sigma_deg"])
-        if sdeg > MAX_SIGMA_DEG:
-            raise fail(name, f"ground.sigma_deg must be at most {MAX_SIGMA_DEG:g} (degrees), "
-                              f"got {show(g['sigma_deg'])}")
-    return sd, sdeg
-
-
-def _ground_section(name: str, value: Any, camera: PinholeCamera) -> tuple[Plane, Region]:
-    g = mapping(name, "ground", value, "normal + distance (or height + pitch_deg) [+ region]")
-    check_keys(name, g, GROUND_KEYS, "ground.")
-    explicit = [k for k in ("normal", "distance") if k in g]
-    angular = [k for k in ("height", "pitch_deg", "roll_deg") if k in g]
-    if explicit and angular:
-        raise fail(name, f"ground has both {' + '.join(explicit)} and {' + '.join(angular)}; "
-                          "give either normal + distance or height + pitch_deg [+ roll_deg]")
-    if not explicit and not angular:
-        raise fail(name, "ground needs normal + distance, or height + pitch_deg [+ roll_deg]")
-    if explicit:
-        for key in ("normal", "distance"):
-            if key not in g:
-                raise fail(name, f"ground.{key} is missing (normal and distance go together)")
-        normal = _unit_normal(name, g["normal"])
-        distance = positive(name, "ground.distance", g["distance"])
-    else:
-        for key in ("height", "pitch_deg"):
-            if key not in g:
-                raise fail(name, f"ground.{key} is missing (height and pitch_deg go together)")
-        distance = positive(name, "ground.height", g["height"])
-        pitch = number(name, "ground.pitch_deg", g["pitch_deg"])
-        if not 0.0 < pitch < 180.0:
-            raise fail(name, f"ground.pitch_deg must be in (0, 180) (degrees down from "
-                              f"horizontal, 90 = straight down), got {show(g['pitch_deg'])}")
-        roll = 0.0
-        if g.get("roll_deg") is not None:
-            roll = number(name, "ground.roll_deg", g["roll_deg"])
-            if not -90.0 < roll < 90.0:
-                raise fail(name, f"ground.roll_deg must be in (-90, 90), got {show(g['roll_deg'])}")
-        normal = normal_from_pitch_roll(pitch, roll)
-    region = _region(name, g.get("region"), camera.width, camera.height)
-    plane = Plane(normal, distance)
-    _check_visible(name, camera, plane, region)
-    return plane, region
-
-
-def _check_visible(name: str, camera: PinholeCamera, plane: Plane, region: Region) -> None:
-    """Every ray of the region must meet the plane in front of the camera.
-
-    That is the whole condition: a camera looking level or slightly up at a road (normal z
-    <= 0) is fine when the region is the part of the image that shows the road.
-    """
-    n = plane.normal
-    x0, y0, x1, y1 = region
-    # Sample the region's border (pixel centres): corners suffice without distortion,
-    # where n . ray is affine in the pixel; the edge samples cover distorted cameras.
-    us = np.unique(np.linspace(x0, x1 - 1, 9).round())
-    vs = np.unique(np.linspace(y0, y1 - 1, 9).round())
-    border = np.concatenate([
-        np.stack([us, np.full_like(us, y0)], 1), np.stack([us, np.full_like(us, y1 - 1)], 1),
-        np.stack([np.full_like(vs, x0), vs], 1), np.stack([np.full_like(vs, x1 - 1), vs], 1),
-    ])
-    shown = f"[{x0}, {y0}, {x1}, {y1}]"
-    try:
-        with np.errstate(all="ignore"):
-            rays = camera.rays(border)
-    except Exception:  # cv2.error from undistortion of absurd coefficients
-        rays = np.full((len(border), 3), np.nan)
-    if not np.all(np.isfinite(rays)):
-        raise fail(name, "camera.distortion cannot be inverted over ground.region "
-                          f"{shown}; check the distortion coefficients")
-    with np.errstate(all="ignore"):
-        dots = rays @ n
-    worst = int(np.argmin(dots))
-    u, v = int(border[worst, 0]), int(border[worst, 1])
-    if not np.any(dots > MIN_RAY_DOT):
-        raise fail(name, f"the ground plane is not in front of the camera: no ray of region {shown} "
-                          "meets it (the normal points from the camera to the ground); check "
-                          "normal/pitch_deg")
-    if not dots[worst] > MIN_RAY_DOT:
-        raise fail(name, f"the ground plane is not visible in region {shown} (behind the camera or "
-                          f"parallel to the view at pixel ({u}, {v})); check normal/pitch_deg, or "
-                          "set ground.region to the part of the image showing the ground")
-    if dots[worst] < 1.0 / MAX_DEPTH_RATIO:
-        raise fail(name, f"the ground plane is too oblique in region {shown}: its depth at pixel "
-                          f"({u}, {v}) is {1.0 / dots[worst]:.3g} times the plane distance "
-                          f"(limit {MAX_DEPTH_RATIO:g}); check normal/pitch_deg, or move "
-                          "ground.region's top edge down")
-
-
 def _parse(data: Any, name: str, base_dir: Path
-           ) -> tuple[PinholeCamera, Plane, Region, tuple[float | None, float | None]]:
+           ) -> tuple[PinholeCamera, Plane, Region, tuple[float | None, float | None], dict]:
     if data is None:
         raise fail(name, "the file is empty; it needs 'camera:' and 'ground:' sections")
     if not isinstance(data, dict):
@@ -329,8 +224,9 @@ def _parse(data: Any, name: str, base_dir: Path
         camera = _camera_section(name, data["camera"])
     else:
         camera = _camera_info(name, base_dir, data["camera_file"])
-    plane, region = _ground_section(name, data["ground"], camera)
-    return camera, plane, region, _sigmas(name, data["ground"])
+    plane, region = ground_section(name, data["ground"], camera)
+    return (camera, plane, region, sigmas(name, data["ground"]),
+            initial_pose(name, data, camera, region))
 
 
 # ----------------------------------------------------------------------------- public
@@ -343,9 +239,9 @@ def load_init(path: Path) -> InitConfig:
     if path.is_dir():
         raise fail(name, "is a directory; expected the init.yaml file")
     data = read_yaml(path, name, "the init file")
-    camera, plane, region, (sigma_distance, sigma_deg) = _parse(data, name, path.parent)
+    camera, plane, region, (sigma_distance, sigma_deg), pose = _parse(data, name, path.parent)
     return InitConfig(camera=camera, plane=plane, region=region, path=path,
-                      sigma_distance=sigma_distance, sigma_deg=sigma_deg)
+                      sigma_distance=sigma_distance, sigma_deg=sigma_deg, **pose)
 
 
 def check_frame_size(cfg: InitConfig, width: int, height: int, frame_path: Path) -> None:
@@ -357,9 +253,11 @@ def check_frame_size(cfg: InitConfig, width: int, height: int, frame_path: Path)
                           "camera that took them")
 
 
-def dump_init(path: Path, camera: PinholeCamera, plane: Plane, region: Region | None = None) -> None:
+def dump_init(path: Path, camera: PinholeCamera, plane: Plane, region: Region | None = None,
+              *, nominal: bool = False) -> None:
     """Write ``camera``, the ground ``plane`` and ``region`` (None: the whole frame) as an
-    init.yaml (docs/guide.md "File formats", the normal + distance form), atomically.
+    init.yaml (docs/guide.md "File formats", the normal + distance form), atomically;
+    ``nominal``: the plane is the nominal mount, not frame 0's ground (``ground.nominal``).
     Raises ConfigError, writing nothing, if they would not load back."""
     path = Path(path)
     name = str(path)
@@ -387,6 +285,8 @@ def dump_init(path: Path, camera: PinholeCamera, plane: Plane, region: Region | 
     ]
     if region is not None:
         lines.append(f"  region: {flow_list(region, lambda v: str(int(v)))}")
+    if nominal:
+        lines.append("  nominal: true")
     text = "\n".join(lines) + "\n"
     # Validate exactly what will be read back.
     _parse(yaml.load(text, Loader=UniqueKeyLoader), name, path.parent)

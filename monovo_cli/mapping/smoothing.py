@@ -23,7 +23,8 @@ frame's pose its keyframe's composed with its own re-scaled motion from it, so t
 trajectory stays one rigid chain.
 
 The distances. The backward pass smooths the keyframes' planes with the mounting prior as
-the filter had it: one sample of the ground's departure per keyframe, at the keyframe's own
+the filter had it (centred on the mean mount: a declared one, or the latent one as far as
+the drive had shown it): one sample of the ground's departure per keyframe, at the keyframe's own
 frame. But the prior holds in every camera frame, and every frame's distance to its
 keyframe's plane is known at the keyframe's scale (``d_f = d_k - n . c_f``, ``c_f`` the frame
 camera's centre in the keyframe's): the suspension bobs over tens of frames, and a keyframe
@@ -31,8 +32,9 @@ drawn at a crest is a sample as far from the mean as the bobbing goes. So the di
 solved again over the whole chain (:func:`smoothed_distances`): the carried distances of the
 links with the variance the carrying added, and the mounting prior on the mean of
 ``log d_f`` over each keyframe's segment (:func:`segment_log_distance_ratios`) with the prior's own std
-(the frames of a segment are not independent samples: together they weigh as one). The
-tilts keep the backward pass's (they hardly move).
+(the frames of a segment are not independent samples: together they weigh as one). A latent
+mean mount's distance is one more unknown of that solution, so the segments' mean sets it and
+frame 0's exact distance sets the scale. The tilts keep the backward pass's (they hardly move).
 
 ``motion.csv`` is written as frames are done and stays causal; trajectory.csv, .tum and the
 terrain products (:mod:`monovo_cli.mapping.terrain_map`) are written with these poses.
@@ -70,15 +72,22 @@ def smoothed_distances(keys: Sequence[Anchored],
     the keyframe's (None: zeros, the keyframes alone). Unknowns ``u_k = log(d'_k / d_k)``;
     linear least squares over: each link's carried distance, ``u_{k+1} - u_k = log(d_c /
     d_{k+1})`` with std ``sqrt(propagated_variance) / d_c``; the mounting prior on each segment,
-    ``u_k = log(D_0 / d_k) - log_ratios[k]`` with std ``sigma / D_0``; and a chain's first
-    keyframe held at its distance with its own variance where that is much tighter than the
-    prior's (an ``init.yaml`` the images confirmed as exact). The normal equations are
-    tridiagonal (Thomas' algorithm)."""
+    ``u_k + log_ratios[k] - v = log(D_0 / d_k)`` with std ``sigma / D_0``, where ``D_0`` is the
+    reference distance the links record and ``v = log(D / D_0)`` the mean mount's distance
+    ``D`` relative to it: 0 for a declared mount, an unknown of its own for a latent one (with
+    the prior ``v = 0`` of the same std only when no keyframe is held, so that the system stays
+    determined); and a chain's first keyframe held at its distance with its own variance where
+    that is much tighter than the prior's (frame 0's exact plane, or an ``init.yaml`` the
+    images confirmed as exact). The normal equations are tridiagonal, bordered by ``v``'s row
+    and column when it is unknown (Thomas' algorithm and a Schur complement)."""
     K = len(keys)
     lift = np.zeros(K) if log_ratios is None else np.asarray(log_ratios, dtype=float)
     d = np.array([k.plane.distance for k in keys])
     diag, off, rhs = np.zeros(K), np.zeros(K), np.zeros(K)  # off[k]: between k-1 and k
+    border, corner, rhs_v = np.zeros(K), 0.0, 0.0  # v's column, diagonal and right-hand side
     known = np.zeros(K, bool)
+    latent = held = False
+    prior_weight = 0.0
     for k in range(1, K):
         link = keys[k].link
         if link is None or not np.isfinite(link.propagated_distance):
@@ -96,12 +105,29 @@ def smoothed_distances(keys: Sequence[Anchored],
         if starts and link.previous_variance < 1e-2 * sigma ** 2:  # held (exact)
             wp = d[k - 1] ** 2 / max(link.previous_variance, 1e-18)
             diag[k - 1] += wp
+            held = True
+        latent = latent or link.latent_mount
         for j in ((k - 1,) if starts else ()) + (k,):
             wp = (D0 / sigma) ** 2
+            target = np.log(D0 / d[j]) - lift[j]
             diag[j] += wp
-            rhs[j] += wp * (np.log(D0 / d[j]) - lift[j])
+            rhs[j] += wp * target
             known[j] = True
-    u = _tridiagonal(diag + np.where(known, 0.0, 1.0), off, rhs)
+            if link.latent_mount:
+                border[j] -= wp
+                corner += wp
+                rhs_v -= wp * target
+                prior_weight = wp
+    diag = diag + np.where(known, 0.0, 1.0)
+    if not latent:
+        u = _tridiagonal(diag, off, rhs)
+    else:
+        if not held:
+            corner += prior_weight
+        x1 = _tridiagonal(diag, off, rhs)
+        x2 = _tridiagonal(diag, off, border)
+        v = (rhs_v - border @ x1) / (corner - border @ x2)
+        u = x1 - x2 * v
     return np.where(known, d * np.exp(u), np.nan)
 
 

@@ -194,6 +194,7 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                                "smooth": smooth},
             frames, cfg.path, {"model": model, "mask": mask, "prior": prior,
                                "groundtruth": groundtruth})
+        record["ground"] = {"init_yaml": cfg.convention}
         fingerprint = _fingerprint(record)
         if resume:
             saved = _resume_point(Path(out_dir), fingerprint)
@@ -286,6 +287,9 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
             if cov_writer is not None:
                 cov_writer.close()
     if out_dir is not None:
+        if tracking.initial_tilt is not None:  # what the images said of init.yaml's tilt
+            record["ground"]["images_tilt"] = _tilt_record(tracking.initial_tilt)
+            write_run_record(Path(out_dir), record)
         t1 = time.perf_counter()
         name = sequence_name(frames.dir)
         path_image = write_trajectory_plot(Path(out_dir), cfg.plane, run, gt_poses, name)
@@ -303,6 +307,14 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
             log.info("report.html written in %.2f s", time.perf_counter() - t1)
         remove_checkpoint(Path(out_dir))  # finished: nothing to resume
     return run
+
+
+def _tilt_record(tilt) -> dict:
+    """run.yaml's ``ground.images_tilt``: the tilt the first frames measured against
+    init.yaml's (deg, in its chart), its std, and what was done with it."""
+    return {"frame": tilt.frame, "measured_deg": [round(v, 4) for v in tilt.measured_deg],
+            "std_deg": [round(v, 4) for v in tilt.std_deg], "chi2": round(tilt.chi2, 2),
+            "contradicts_init_yaml": tilt.contradicts, "corrected": tilt.adopted}
 
 
 def _fingerprint(record: dict) -> dict:

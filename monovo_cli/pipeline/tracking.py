@@ -152,7 +152,7 @@ class Tracking:
         cfg = seq.config
         self._odometry = Odometry(cfg.camera, cfg.plane, cfg.region, self.options, mask=mask,
                                   first_keyframe=first_keyframe,
-                                  sigma_distance=cfg.sigma_distance, sigma_deg=cfg.sigma_deg)
+                                  mounting=cfg.mounting)
         self._recorder = RunRecorder()
         self._next = 0  # the next frame to track
         self._last_image: np.ndarray | None = None
@@ -161,6 +161,12 @@ class Tracking:
         self._thumbnail_limit, self._thumbnail_side = int(thumbnails), int(thumbnail_side)
         self._thumbnail_stride, self._keyframes_seen, self._last_keyframe = 1, 0, -1
         self.drive: SmoothedDrive | None = None
+
+    @property
+    def initial_tilt(self):
+        """The images' verdict on init.yaml's ground tilt
+        (:class:`~monovo_cli.core.plane.tracker.InitialTilt`), None until measured."""
+        return self._odometry.initial_tilt
 
     def __len__(self) -> int:
         """The number of frames in the sequence."""

@@ -249,5 +249,11 @@ def rover_poses(path: np.ndarray, height_at, bob: np.ndarray, mount: np.ndarray
     """``g_from_cam_k``: the body on the ground under the wheels (:func:`body_on_ground`),
     bobbing by ``bob`` (n, 3) (height along the body's z, pitch about its y, roll about its
     x, about its origin), the camera at ``mount`` (``body_from_cam``) on it."""
-    return [g_from_body @ make_pose(_rot_y(b[1]) @ _rot_x(b[2]), np.array([0.0, 0.0, b[0]])) @ mount
+    return [g_from_body @ bobbed_mount(b, mount)
             for g_from_body, b in zip(body_on_ground(path, height_at), bob)]
+
+
+def bobbed_mount(bob: np.ndarray, mount: np.ndarray) -> np.ndarray:
+    """(4, 4) the camera's pose in the frame of the ground under the wheels: the body bobbing
+    by ``bob`` (3,) (height, pitch, roll; :func:`rover_poses`), the camera at ``mount``."""
+    return make_pose(_rot_y(bob[1]) @ _rot_x(bob[2]), np.array([0.0, 0.0, bob[0]])) @ mount

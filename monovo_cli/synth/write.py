@@ -35,7 +35,8 @@ With ``terrain=`` (always for ``mer``) the drive goes over a height field instea
 plane (:mod:`~monovo_cli.synth.terrain`), rendered by ray casting
 (:mod:`~monovo_cli.synth.raycast`); the rover's body lies on the ground under its wheels
 and bobs (:mod:`~monovo_cli.synth.rover`); the ``drive`` camera is then pitched 40 deg.
-init.yaml gets the nominal plane (the body's, seen from the mounting) and ``terrain.npz``
+init.yaml gets frame 0's ground (the body's plane under its wheels, seen from the bobbing
+camera; ``init_pose="nominal"``: the nominal mount, declared as such) and ``terrain.npz``
 the true height field.
 """
 
@@ -68,6 +69,7 @@ from monovo_cli.synth.motion import (
     PAIR_EXTRA_TILT_DEG,
     PAIR_MAX_TRANSLATION,
     PAIR_TILT_DEG,
+    bobbed_mount,
     body_from_camera,
     drive_poses,
     pair_poses,
@@ -99,10 +101,11 @@ from monovo_cli.version import __version__
 
 PRESETS = ("drive", "pairs", "mer")
 TEXTURES = ("procedural", "gravel")  # built-in names of texture=
-NOMINAL_PLANE_NOTE = (
-    "# The ground plane below is the nominal one, as the rover knows it from its mounting: the\n"
-    "# plane of its wheels at frame 0 seen from the camera's mounting (mast height and pitch),\n"
-    "# not the true local ground (suspension bobbing and terrain differ; see terrain.npz).\n")
+INIT_POSES = {  # init_pose -> the note that heads init.yaml
+    "frame0": "# The ground below is frame 0's: the wheels' plane seen from the camera, its bob\n"
+              "# included (the terrain differs from it; see terrain.npz).\n",
+    "nominal": "# The ground below is the nominal mount: the wheels' plane seen from the camera's\n"
+               "# mounting, not frame 0's (bobbing and terrain differ; see terrain.npz).\n"}
 MIN_SIZE = 32
 MAX_SIZE = 8192
 
@@ -126,16 +129,17 @@ class SynthSummary:
 def _write_sequence(seq_dir: Path, cam: PinholeCamera, poses: list[np.ndarray],
                     region: list[int], params: dict,
                     photometric: list[tuple[float, float]] | None,
-                    plane_pose: np.ndarray | None = None) -> None:
+                    plane_pose: np.ndarray | None = None, nominal: bool = False) -> None:
     """init.yaml, ground truth, synth.yaml (+ photometric.csv) of one sequence; frames are
     written by the caller as they are rendered. init.yaml's plane is ``z_G = 0`` seen from
-    ``plane_pose`` (default: ``poses[0]``)."""
+    ``plane_pose`` (default: ``poses[0]``), declared the nominal mount if ``nominal``."""
     inv0 = se3_inv(poses[0])
     traj = [np.eye(4)] + [inv0 @ g for g in poses[1:]]
     rows = [MotionRow(frame=k, prev_from_cur=se3_inv(poses[k - 1]) @ poses[k], msd=0.0,
                       iterations=0, points=0, status=FrameStatus.OK) for k in range(1, len(poses))]
     n, d = ground_in_camera(poses[0] if plane_pose is None else plane_pose)
-    dump_init(seq_dir / "init.yaml", cam, Plane(n + 0.0, d), tuple(region))  # (+ 0.0: no -0.0)
+    dump_init(seq_dir / "init.yaml", cam, Plane(n + 0.0, d), tuple(region),  # (+ 0.0: no -0.0)
+              nominal=nominal)
     atomic_write_text(seq_dir / "groundtruth.tum", tum_text([float(k) for k in range(len(poses))],
                                                             traj))
     atomic_write_text(seq_dir / "groundtruth_motion.csv", motion_csv_text(rows))
@@ -183,7 +187,7 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
                texture: Path | str | None = None, max_translation: float | None = None,
                max_rotation_deg: float = 5.0, exposure: bool = False, shadow: float = 0.0,
                low_texture: bool = False, clean_frame0: bool = False, terrain: str | None = None,
-               progress: Callable[[int, int], None] | None = None) -> SynthSummary:
+               init_pose: str = "frame0", progress: Callable[[int, int], None] | None = None) -> SynthSummary:
     """Write a synthetic sequence (``drive``, ``mer``) or set of 2-frame sequences (``pairs``).
 
     ``frames``: frames of the drive (default 300; mer 100) or number of pairs (default 100).
@@ -194,8 +198,11 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
     body on the ground under its wheels and bobbing (monovo_cli.synth.rover, .raycast); the
     drive's camera is then pitched 40 deg. ``mer``: MER-like 0.6-0.75 m steps and 12-18 deg
     turns in place, a 45 deg field of view pitched 45 deg, over ``terrain`` (default flat).
-    With a terrain, init.yaml holds the nominal plane (the body's, seen from the mounting)
-    and terrain.npz the true height field.
+    With a terrain, init.yaml holds frame 0's ground (the body's plane at frame 0, its bob
+    included, seen from the camera) and terrain.npz the true height field.
+    ``init_pose``: ``frame0`` (init.yaml holds frame 0's ground, the convention of SPEC.md) or
+    ``nominal`` (the rover's nominal mount, declared with ``ground.nominal: true``; drives
+    only).
     ``max_translation``: pairs -- per-axis translation bound, m (default 10);
     drive -- peak forward step per frame, m (default 0.065 = 0.05 * 1.3).
     ``max_rotation_deg``: pairs -- per-axis bound of the rotation vector, degrees; the
@@ -220,6 +227,10 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
         raise InputError("--terrain: only the drive and mer presets drive over terrain")
     if rover and terrain is None:
         terrain = "flat"
+    if init_pose not in INIT_POSES:
+        raise InputError(f"--init-pose {init_pose!r}: choose one of {', '.join(INIT_POSES)}")
+    if init_pose == "nominal" and not drive:
+        raise InputError("--init-pose nominal: only a drive has a nominal mount")
     if rover and terrain not in TERRAINS:
         raise InputError(f"--terrain {terrain!r}: unknown terrain, choose one of {', '.join(TERRAINS)}")
     if preset == "mer" and max_translation is not None:
@@ -296,6 +307,7 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
         "max_rotation_deg": float(max_rotation_deg), "exposure": bool(exposure),
         "texture": texture_desc, "shadow": float(shadow), "low_texture": bool(low_texture),
         "clean_frame0": bool(clean_frame0),
+        **({"init_pose": init_pose} if init_pose != "frame0" else {}),
         "texture_texels": [int(tex.shape[1]), int(tex.shape[0])],
         "metres_per_texel": metres_per_texel, "supersample": SUPERSAMPLE,
     }
@@ -368,11 +380,14 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
             _write_png(frames_dir / f"frame_{k:06d}.png", img)
             if drive and progress is not None:
                 progress(k + 1, frames)
+        plane_pose = None
+        if rover:
+            plane_pose = nominal if init_pose == "nominal" else bobbed_mount(scene.bob[0], nominal)
         _write_sequence(seq_dir, cam, poses, region, seq_params, photometric,
-                        plane_pose=nominal if rover else None)
+                        plane_pose=plane_pose, nominal=init_pose == "nominal")
         if rover:
             init = seq_dir / "init.yaml"
-            atomic_write_text(init, NOMINAL_PLANE_NOTE + init.read_text(encoding="utf-8"))
+            atomic_write_text(init, INIT_POSES[init_pose] + init.read_text(encoding="utf-8"))
         distance += float(sum(np.linalg.norm(poses[k][:3, 3] - poses[k - 1][:3, 3])
                               for k in range(1, len(poses))))
         if not drive and progress is not None:

@@ -190,16 +190,41 @@ def test_terrain_drive_ground_truth_chains(rolling_drive):
     assert np.all(steps > 0.01) and np.all(steps < 0.15)  # ~5 cm per frame
 
 
-def test_terrain_drive_init_yaml_is_the_nominal_plane(rolling_drive):
+def test_terrain_drive_init_yaml_is_frame_0s_ground(rolling_drive):
+    """init.yaml holds frame 0's ground: the wheels' plane at frame 0 seen from the bobbing
+    camera (SPEC.md), so the nominal mount's 1.5 m is off by the crest."""
     text = (rolling_drive / "init.yaml").read_text()
-    assert "nominal" in text.splitlines()[0]
+    assert "frame 0's" in text.splitlines()[0]
     init = yaml.safe_load(text)
-    n, d = ground_in_camera(rover_mount("drive"))  # mast 1.5 m, pitched 40 deg
-    assert init["ground"]["normal"] == pytest.approx(n, abs=1e-12)
-    assert init["ground"]["distance"] == pytest.approx(1.5, abs=1e-12)
+    assert "nominal" not in init["ground"]
+    n_nom, d_nom = ground_in_camera(rover_mount("drive"))  # mast 1.5 m, pitched 40 deg
+    assert abs(init["ground"]["distance"] - 1.5) > 0.002
+    assert math.degrees(math.acos(np.dot(init["ground"]["normal"], n_nom))) > 1.0
     assert init["camera"]["fx"] == pytest.approx(0.87 * SIZE[0])
     params = yaml.safe_load((rolling_drive / "synth.yaml").read_text())
     assert params["terrain"] == "rolling" and params["pitch_deg"] == pytest.approx(40.0)
+    assert "init_pose" not in params
+
+
+def test_terrain_drive_init_yaml_may_be_the_nominal_mount(synth_drive):
+    """With init_pose="nominal" init.yaml holds the nominal mount and says so."""
+    seq = synth_drive(terrain="rolling", frames=3, size=SIZE, seed=3, noise_var=0.0,
+                      init_pose="nominal")
+    text = (seq / "init.yaml").read_text()
+    assert "nominal" in text.splitlines()[0]
+    init = yaml.safe_load(text)
+    n, d = ground_in_camera(rover_mount("drive"))
+    assert init["ground"]["nominal"] is True
+    assert init["ground"]["normal"] == pytest.approx(n, abs=1e-12)
+    assert init["ground"]["distance"] == pytest.approx(1.5, abs=1e-12)
+    assert yaml.safe_load((seq / "synth.yaml").read_text())["init_pose"] == "nominal"
+
+
+def test_init_pose_nominal_needs_a_drive(tmp_path):
+    with pytest.raises(InputError, match="--init-pose nominal"):
+        synthesize(tmp_path / "p", preset="pairs", frames=1, size=(64, 64), init_pose="nominal")
+    with pytest.raises(InputError, match="--init-pose 'mean'"):
+        synthesize(tmp_path / "q", preset="drive", frames=2, size=(64, 64), init_pose="mean")
 
 
 def test_terrain_npz_is_the_rendered_surface(rolling_drive, texture):
@@ -246,9 +271,10 @@ def test_mer_preset_defaults_and_steps(tmp_path):
     s = synthesize(out, preset="mer", frames=5, size=(64, 64), seed=1, texture="gravel")
     init = yaml.safe_load((out / "init.yaml").read_text())
     assert init["camera"]["fx"] == pytest.approx(32.0 / math.tan(math.radians(22.5)))
-    n, d = ground_in_camera(rover_mount("mer"))
-    assert init["ground"]["normal"] == pytest.approx(n, abs=1e-12) and d == 1.5
-    assert math.degrees(math.asin(-n[2])) == pytest.approx(-45.0)
+    n, d = ground_in_camera(rover_mount("mer"))  # the nominal mount; init.yaml: frame 0's
+    assert d == 1.5 and math.degrees(math.asin(-n[2])) == pytest.approx(-45.0)
+    assert abs(init["ground"]["distance"] - 1.5) < 0.05
+    assert math.degrees(math.acos(np.dot(init["ground"]["normal"], n))) < 4.0
     params = yaml.safe_load((out / "synth.yaml").read_text())
     assert params["terrain"] == "flat" and params["texture"] == "gravel"
     _, tum = read_tum(out / "groundtruth.tum")

@@ -208,7 +208,9 @@ class PlaneLink:
     variance that carrying added to it (the motion's error, the tilt's, the process noise:
     the carried plane's distance variance less the previous keyframe's own, scaled),
     ``previous_variance`` (m^2) the previous keyframe's distance variance when it was left,
-    and ``mounting`` the mounting prior's ``(distance, std)`` (m). NaN: not recorded."""
+    ``mounting`` the mounting prior's ``(distance, std)`` (m): its reference distance (frame
+    0's, or the declared mount's) and the bobbing's std; ``latent_mount`` whether the mean
+    mount is unknown (estimated from the drive) rather than the reference. NaN: not recorded."""
 
     gain: np.ndarray
     innovation: np.ndarray
@@ -216,6 +218,7 @@ class PlaneLink:
     propagated_variance: float = math.nan
     previous_variance: float = math.nan
     mounting: tuple[float, float] = (math.nan, math.nan)
+    latent_mount: bool = False
 
 
 def smoothed_corrections(links: Sequence[PlaneLink | None]) -> list[np.ndarray]:

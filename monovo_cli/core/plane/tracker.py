@@ -1,19 +1,32 @@
 """The keyframe plane along a drive: its covariance, its test on the first frames, and the
 plane of every new keyframe (the tracker's side of :mod:`monovo_cli.core.plane.belief`).
 
-A keyframe's plane starts as init.yaml's with the mounting prior's covariance. While it is
-known only that loosely (tilt std above PLANE_SETTLED_DEG: frame 0, a re-initialisation),
-:meth:`PlaneTracker.test` measures its normal on every frame; images that contradict it
-(init.yaml holds the nominal plane and frame 0 is at a crest of the suspension, or on a
-slope) correct it, images that confirm it (an exact init.yaml, e.g. the paper's pairs) make
-it exact. At a re-anchor, :meth:`PlaneTracker.successor` gives the new keyframe's plane: the
-MAP of the plane carried by the motion, the normal measured from the two images and the
-mounting prior. docs/algorithm.md section 4 gives the reasons and thresholds.
+What init.yaml says of the ground is a :class:`Mounting`. By default its plane is frame 0's
+ground, exact (the paper's known initial pose; the drive's scale comes from it), and the
+mounting prior is centred on a *latent mean mount*: the rover's long-run distance and tilt
+over the ground, unknown, with a prior centred on frame 0's plane of the bobbing's width
+(``sigma_distance``, ``sigma_deg``). Every keyframe's plane is one more sample of the ground
+around that mean (:class:`MeanMount`), so the prior does not pull the drive toward frame 0's own
+bob. A declared nominal mount (``ground.nominal: true``, or a ``mount:`` block) centres the
+prior on that mount instead; with ``ground.nominal: true`` frame 0's plane is the nominal one,
+known only to the prior's width.
+
+A keyframe plane known only loosely (tilt std above PLANE_SETTLED_DEG: a nominal frame 0, a
+stated uncertainty, a re-initialisation) is tested on every frame by :meth:`PlaneTracker.test`:
+images that contradict it correct it, images that confirm it make it exact. Frame 0's tilt is
+measured from the first frames whatever its uncertainty (:attr:`PlaneTracker.initial_tilt`):
+a contradiction is reported, and replaces nothing that init.yaml gives as exact (nor, with
+``keep_initial_tilt``, anything at all). At a re-anchor, :meth:`PlaneTracker.successor` gives
+the new keyframe's plane: the MAP of the plane carried by the motion, the normal measured
+from the two images and the mounting prior. docs/algorithm.md section 4 gives the reasons and
+thresholds.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+import logging
+import math
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -49,60 +62,196 @@ from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import orthonormalize
 from monovo_cli.geometry.plane import Plane
 
+log = logging.getLogger(__name__)
+
+TILT_CHECK_FRAMES = 10  # frames of keyframe 0 on which init.yaml's tilt is measured at most
+
+
+@dataclass(frozen=True)
+class Mounting:
+    """What init.yaml says of the ground besides frame 0's plane.
+
+    ``sigma_distance`` (m) and ``sigma_deg``: how far the ground under the rover departs from
+    its mean mount (None: :func:`~monovo_cli.core.plane.belief.default_sigmas`); ``mount``
+    the declared nominal mount, a plane in the camera frame (None: the mean mount is latent,
+    estimated from the drive); ``initial_std`` ``(m, deg)`` the std of frame 0's plane (None:
+    exact; ``ground.nominal: true`` gives the prior's width).
+    """
+
+    sigma_distance: float | None = None
+    sigma_deg: float | None = None
+    mount: Plane | None = None
+    initial_std: tuple[float, float] | None = None
+
+    @classmethod
+    def nominal(cls, plane: Plane, sigma_distance: float | None = None,
+                sigma_deg: float | None = None) -> Mounting:
+        """``plane`` is the nominal mount (``ground.nominal: true``): frame 0's ground is
+        known only to the prior's width."""
+        sigmas = default_sigmas(plane, sigma_distance, sigma_deg)
+        return cls(sigma_distance, sigma_deg, mount=plane, initial_std=sigmas)
+
+
+@dataclass(frozen=True)
+class InitialTilt:
+    """init.yaml's tilt against the images': ``measured_deg`` (2,) the measured normal's tilt
+    angles in the chart of init.yaml's plane, ``std_deg`` (2,) their std, ``chi2`` the
+    contradiction's chi-square (2 dof), ``frame`` where measured, ``adopted`` whether the
+    measurement corrected the plane."""
+
+    measured_deg: tuple[float, float]
+    std_deg: tuple[float, float]
+    chi2: float
+    frame: int
+    adopted: bool
+
+    @property
+    def contradicts(self) -> bool:
+        """The images contradict init.yaml's tilt (chi-square above CONSISTENT_CHI2)."""
+        return self.chi2 >= CONSISTENT_CHI2
+
+
+class MeanMount:
+    """The latent mean mount: a Gaussian belief about the plane the ground keeps around the
+    rover, in every camera frame. It starts centred on frame 0's plane with the bobbing's
+    width; each keyframe's plane as the images and the carried plane alone give it (before the
+    prior) is one more sample of it, with the bobbing's variance added."""
+
+    def __init__(self, plane: Plane, bobbing: np.ndarray) -> None:
+        self.bobbing = bobbing
+        self.belief = PlaneBelief.from_covariance(plane, bobbing)
+
+    def prior(self) -> PlaneBelief:
+        """The prior on a keyframe's ground: the mean mount with its uncertainty and the
+        bobbing's."""
+        return PlaneBelief.from_covariance(self.belief.plane, self.belief.covariance + self.bobbing)
+
+    def sample(self, plane: PlaneBelief) -> None:
+        """Add a keyframe's ground (``plane``, without the prior) as a sample."""
+        try:
+            sample = PlaneBelief.from_covariance(plane.plane, plane.covariance + self.bobbing)
+            self.belief = fuse([self.belief, sample])
+        except (ValueError, np.linalg.LinAlgError):
+            pass
+
 
 class PlaneTracker:
     """What the tracker believes about its keyframe's plane.
 
-    ``mounting``: the mounting prior (``plane`` of init.yaml, ``sigma_distance`` m and
-    ``sigma_deg``; None: :func:`~monovo_cli.core.plane.belief.default_sigmas`);
-    ``covariance`` (3, 3): of the current keyframe plane's distance and tilts, in its chart;
-    ``consistency`` calibrates it for the reported motion covariance (:attr:`reported_covariance`).
+    ``plane`` init.yaml's (frame 0's ground, or the nominal mount), ``mounting`` what else
+    it says (:class:`Mounting`; None: the defaults); ``keep_initial_tilt`` keeps frame 0's
+    tilt whatever the images say. ``covariance`` (3, 3): of the current keyframe plane's
+    distance and tilts, in its chart; ``consistency`` calibrates it for the reported motion
+    covariance (:attr:`reported_covariance`); ``initial_tilt`` the images' verdict on frame
+    0's tilt once measured (:class:`InitialTilt`).
     """
 
-    def __init__(self, plane: Plane, sigma_distance: float | None = None,
-                 sigma_deg: float | None = None) -> None:
-        self.mounting = mounting_prior(plane, *default_sigmas(plane, sigma_distance, sigma_deg))
-        self.covariance = self.mounting.covariance
+    def __init__(self, plane: Plane, mounting: Mounting | None = None, *,
+                 keep_initial_tilt: bool = False) -> None:
+        m = mounting or Mounting()
+        self.sigmas = default_sigmas(plane, m.sigma_distance, m.sigma_deg)
+        bobbing = mounting_prior(plane, *self.sigmas)
+        self.mean_mount = None if m.mount is not None else MeanMount(plane, bobbing.covariance)
+        self._nominal = None if m.mount is None else mounting_prior(m.mount, *self.sigmas)
+        self._reference = plane if m.mount is None else m.mount  # the smoother's distance reference
+        if m.initial_std is None:
+            self.covariance = exact_covariance(plane)
+        else:
+            s_d, s_deg = m.initial_std
+            self.covariance = np.diag([s_d ** 2] + [math.radians(s_deg) ** 2] * 2)
+        self.keep_initial_tilt = keep_initial_tilt
+        self.initial_tilt: InitialTilt | None = None
+        self._tilt_checks = 0
+        self._model_variance = 0.0  # (m^2) the ground seen departs from a plane given as exact
         self.consistency = PlaneCovarianceCalibration()
 
     @property
+    def mounting(self) -> PlaneBelief:
+        """The mounting prior on a keyframe's ground, as it stands now."""
+        return self._nominal if self.mean_mount is None else self.mean_mount.prior()
+
+    @property
     def reported_covariance(self) -> np.ndarray:
-        """(3, 3) :attr:`covariance` as the re-anchors so far say it is (for reporting only)."""
-        return self.consistency.reported(self.covariance)
+        """(3, 3) :attr:`covariance` as the re-anchors so far say it is (for reporting only);
+        where the images contradicted a plane given as exact, the ground they see departs
+        from it by up to the bobbing's width in distance too."""
+        P = self.consistency.reported(self.covariance)
+        if self._model_variance:
+            P = P.copy()
+            P[0, 0] += self._model_variance
+        return P
+
+    @property
+    def mounting_tilt_covariance(self) -> np.ndarray:
+        """(2, 2) the bobbing's covariance of the tilts (rad^2)."""
+        return np.eye(2) * math.radians(self.sigmas[1]) ** 2
+
+    @property
+    def mount_plane(self) -> Plane:
+        """The plane the ground keeps around the rover as now believed (the declared mount,
+        or the mean mount's estimate), in any camera frame."""
+        return self.mounting.plane
 
     @property
     def unsettled(self) -> bool:
-        """The keyframe's tilt is known only from the prior: :meth:`test` it on each frame."""
+        """The keyframe's tilt is known only loosely: :meth:`test` it on each frame."""
         return tilt_std_deg(self.covariance) > PLANE_SETTLED_DEG
+
+    def wants_test(self, key: Keyframe, index: int) -> bool:
+        """Whether :meth:`test` should run on frame ``index``: the keyframe's tilt is unsettled,
+        or frame 0's tilt is still to be measured."""
+        if key.index == index:
+            return False
+        first = key.index == 0 and self.initial_tilt is None and self._tilt_checks < TILT_CHECK_FRAMES
+        return first or (self.unsettled and not (key.index == 0 and self.keep_initial_tilt))
 
     def anchored(self, covariance: np.ndarray | None = None) -> None:
         """A new keyframe was anchored with a plane of ``covariance`` (None: the prior's)."""
+        self._model_variance = 0.0
         self.covariance = self.mounting.covariance if covariance is None else covariance
 
-    def test(self, key: Keyframe, key_image: np.ndarray, pyramid: list[np.ndarray],
+    def test(self, index: int, key: Keyframe, key_image: np.ndarray, pyramid: list[np.ndarray],
              est: Estimate, camera: PinholeCamera, region: tuple[int, int, int, int],
              options: TrackOptions, mask: np.ndarray | None = None
              ) -> tuple[Keyframe, Estimate, np.ndarray] | None:
-        """Test the keyframe's tilt on the current frame (``pyramid``, estimate ``est``).
+        """Test the keyframe's tilt on the current frame ``index`` (``pyramid``, estimate
+        ``est``); on keyframe 0's first frames, record the verdict on init.yaml's tilt.
 
         If the normal of the joint refinement contradicts it (chi-square above
         CONSISTENT_CHI2), the two are fused and ``(keyframe rebuilt on the result from
         key_image at the same pose, the frame re-estimated against it, the fused covariance)``
-        comes back for the caller to check and adopt; the plane keeps the prior's distance
-        uncertainty. If the images confirm it to within CONFIRMED_DEG it is taken as exact
-        (:attr:`covariance` shrinks). None unless the plane was corrected.
+        comes back for the caller to check and adopt; the plane keeps its distance and that
+        distance's uncertainty. If the images confirm an unsettled plane to within
+        CONFIRMED_DEG it is taken as exact (:attr:`covariance` shrinks). None unless the plane
+        was corrected; never for frame 0's with ``keep_initial_tilt``.
         """
         fit = refine_plane_and_motion(key.levels[0].points, pyramid[0], est.cur_from_key,
                                       key.plane, gain=est.gain, bias=est.bias,
                                       options=options.estimator, iterations=4)
         if fit.measured is None:
             return None
-        if tilt_chi2(fit.measured, key.plane) < CONSISTENT_CHI2:
-            if measured_tilt_std_deg(fit.measured) < CONFIRMED_DEG:
+        chi2 = tilt_chi2(fit.measured, key.plane)
+        precise = measured_tilt_std_deg(fit.measured) < CONFIRMED_DEG
+        keep = key.index == 0 and self.keep_initial_tilt
+        if key.index == 0 and self.initial_tilt is None:
+            self._tilt_checks += 1
+            if precise or chi2 >= CONSISTENT_CHI2 or self._tilt_checks >= TILT_CHECK_FRAMES:
+                self._record_initial_tilt(fit.measured, key.plane, chi2, index, not keep)
+        if keep:
+            return None
+        if chi2 < CONSISTENT_CHI2:
+            if precise and self.unsettled:
                 self.covariance = exact_covariance(key.plane)
             return None
+        # Contradicted: the tilt is corrected, a tilt given as exact taken as known to the
+        # prior's width (the ground the images see is not the plane under the wheels); the
+        # distance keeps its own uncertainty.
+        cov = np.array(self.covariance, dtype=float)
+        if tilt_std_deg(cov) < self.sigmas[1]:
+            cov[1:, 1:] = self.mounting_tilt_covariance
+            self._model_variance = max(self.sigmas[0] ** 2 - cov[0, 0], 0.0)
         try:
-            belief = fuse([PlaneBelief.from_covariance(key.plane, self.covariance), fit.measured])
+            belief = fuse([PlaneBelief.from_covariance(key.plane, cov), fit.measured])
             cov = belief.covariance
             new_key = replace(build_keyframe(key.index, key_image, camera, belief.plane, region,
                                              key.world_from_key, options, mask=mask),
@@ -112,6 +261,23 @@ class PlaneTracker:
         new = estimate_motion(new_key.levels, pyramid, est.cur_from_key, options=options.estimator,
                               gain=est.gain, bias=est.bias, first_level=options.predicted_top_level)
         return new_key, new, cov
+
+    def _record_initial_tilt(self, measured: PlaneBelief, plane: Plane, chi2: float,
+                             frame: int, adopted: bool) -> None:
+        L, eta = measured.in_chart(plane)
+        L2 = L[1:, 1:]
+        try:
+            C = np.linalg.inv(L2)
+        except np.linalg.LinAlgError:
+            return
+        x = np.degrees(C @ eta[1:])
+        s = np.degrees(np.sqrt(np.clip(np.diag(C), 0.0, None)))
+        self.initial_tilt = InitialTilt((float(x[0]), float(x[1])), (float(s[0]), float(s[1])),
+                                        float(chi2), frame, bool(adopted and chi2 >= CONSISTENT_CHI2))
+        words = ("contradict" if chi2 >= CONSISTENT_CHI2 else "agree with")
+        log.info("the images %s init.yaml's ground tilt: measured %+.2f, %+.2f deg (std %.2f, "
+                 "%.2f) from it, chi-square %.1f; %s", words, x[0], x[1], s[0], s[1], chi2,
+                 "the tilt is corrected" if self.initial_tilt.adopted else "init.yaml's tilt is kept")
 
     def successor(self, key: Keyframe, image: np.ndarray, est: Estimate,
                   cur_from_key: np.ndarray, gain: float, bias: float,
@@ -131,9 +297,10 @@ class PlaneTracker:
             transported(fit.measured, orthonormalize(fit.cur_from_key))
         distance_change = DISTANCE_CHANGE * key.plane.distance
         tilt_change = np.radians(TILT_CHANGE_DEG)
+        prior = self.mounting
         try:
             carried = propagated_plane(key.plane, self.covariance, cur_from_key, est.covariance)
-            belief = keyframe_plane(carried, measured=measured, prior=self.mounting,
+            belief = keyframe_plane(carried, measured=measured, prior=prior,
                                     distance_change=distance_change, tilt_change=tilt_change)
             J = propagation_jacobian(key.plane, cur_from_key)[1][:, :3]
             predicted = carried.covariance + process_noise(distance_change, tilt_change)
@@ -143,9 +310,13 @@ class PlaneTracker:
                              propagated_variance=float(predicted[0, 0]
                                                     - J[0, 0] ** 2 * self.covariance[0, 0]),
                              previous_variance=float(self.covariance[0, 0]),
-                             mounting=(self.mounting.plane.distance,
-                                       float(np.sqrt(self.mounting.covariance[0, 0]))))
+                             mounting=(self._reference.distance, self.sigmas[0]),
+                             latent_mount=self.mean_mount is not None)
+            if self.mean_mount is not None:  # the images and the carried plane alone
+                self.mean_mount.sample(keyframe_plane(carried, measured=measured,
+                                                      distance_change=distance_change,
+                                                      tilt_change=tilt_change))
         except (ValueError, np.linalg.LinAlgError):
             return key.plane.in_frame(cur_from_key), None, fit.gain, fit.bias, None
-        self.consistency.reanchored(carried, belief, self.mounting, distance_change)
+        self.consistency.reanchored(carried, belief, prior, distance_change)
         return belief.plane, belief.covariance, fit.gain, fit.bias, link

@@ -21,6 +21,7 @@ from monovo_cli.core.plane.belief import (
     to_chart,
     transported,
 )
+from monovo_cli.core.plane.tracker import Mounting
 from monovo_cli.core.run import RunRecorder
 from monovo_cli.errors import ConfigError
 from monovo_cli.geometry.lie import make_pose, se3_inv, so3_exp
@@ -226,7 +227,7 @@ def test_bobbing_drive_from_a_crest_ends_without_the_crests_scale():
             first["n"] = len(key.levels[0].points)
 
     res = list(estimate_frames(frames, cam, Plane(n0, d0), tuple(ground_region(cam, mount)),
-                     on_keyframe=on_keyframe))
+                               mounting=Mounting.nominal(Plane(n0, d0)), on_keyframe=on_keyframe))
     assert all(r.status.value != "lost" for r in res)
     # the terrain products: every keyframe's points on the ground (height 0 in the true world
     # frame); frame 0's keyframe, anchored on init.yaml's plane, is put on the plane the
@@ -258,19 +259,26 @@ INIT = {"camera": {"width": 64, "height": 48, "fx": 60.0, "fy": 60.0, "cx": 31.5
 
 
 def test_init_yaml_sigmas_reach_the_tracker(tmp_path):
+    """By default frame 0's plane is exact and the sigmas are the bobbing's width around a
+    latent mean mount; with ``ground.nominal: true`` frame 0's plane is known to that width
+    and the prior is centred on it."""
     p = tmp_path / "init.yaml"
     p.write_text(yaml.safe_dump(INIT))
     cfg = load_init(p)
-    assert cfg.sigma_distance is None and cfg.sigma_deg is None
-    odo = Odometry(cfg.camera, cfg.plane, cfg.region)  # the defaults: d / 30 and 3 deg
-    assert np.allclose(np.sqrt(np.diag(odo._plane.covariance)), [0.05, math.radians(3), math.radians(3)])
+    assert cfg.sigma_distance is None and cfg.sigma_deg is None and not cfg.nominal
+    odo = Odometry(cfg.camera, cfg.plane, cfg.region, mounting=cfg.mounting)
+    assert np.all(np.sqrt(np.diag(odo._plane.covariance)) < 1e-5)  # frame 0's plane: exact
+    assert odo._plane.sigmas == pytest.approx((0.05, 3.0))  # the defaults: d / 30 and 3 deg
+    assert odo._plane.mean_mount is not None
     p.write_text(yaml.safe_dump({**INIT, "ground": {**INIT["ground"], "sigma_distance": 0.02,
-                                                    "sigma_deg": 1.5}}))
+                                                    "sigma_deg": 1.5, "nominal": True}}))
     cfg = load_init(p)
-    assert (cfg.sigma_distance, cfg.sigma_deg) == (0.02, 1.5)
-    odo = Odometry(cfg.camera, cfg.plane, cfg.region, sigma_distance=cfg.sigma_distance,
-                   sigma_deg=cfg.sigma_deg)
+    assert (cfg.sigma_distance, cfg.sigma_deg, cfg.nominal) == (0.02, 1.5, True)
+    odo = Odometry(cfg.camera, cfg.plane, cfg.region, mounting=cfg.mounting)
     assert np.allclose(np.sqrt(np.diag(odo._plane.covariance)), [0.02, math.radians(1.5), math.radians(1.5)])
+    assert odo._plane.mean_mount is None
+    assert np.allclose(np.sqrt(np.diag(odo._plane.mounting.covariance)),
+                       [0.02, math.radians(1.5), math.radians(1.5)])
 
 
 @pytest.mark.parametrize("key, value, words", [
