@@ -5,11 +5,16 @@ What init.yaml says of the ground is a :class:`Mounting`. By default its plane i
 ground, exact (the paper's known initial pose; the drive's scale comes from it), and the
 mounting prior is centred on a *latent mean mount*: the rover's long-run distance and tilt
 over the ground, unknown, with a prior centred on frame 0's plane of the bobbing's width
-(``sigma_distance``, ``sigma_deg``). Every keyframe's plane is one more sample of the ground
-around that mean (:class:`MeanMount`), so the prior does not pull the drive toward frame 0's own
-bob. A declared nominal mount (``ground.nominal: true``, or a ``mount:`` block) centres the
-prior on that mount instead; with ``ground.nominal: true`` frame 0's plane is the nominal one,
-known only to the prior's width.
+(``sigma_distance``, ``sigma_deg``). Frame 0 is one sample of the ground around that mean, so
+the forward pass centres every keyframe's prior on frame 0's plane with the mean's
+uncertainty and the bobbing's (twice the bobbing's variance), and the smoother
+(:mod:`monovo_cli.mapping.smoothing`) solves the mean's distance over the whole drive, so that
+the trajectory written does not keep frame 0's own bob. (The forward pass does not re-estimate
+the mean from the keyframes' planes: those are samples of one carried chain, not independent
+ones, and counting them as independent made the mean follow the chain's drift.) A declared
+nominal mount (``ground.nominal: true``, or a ``mount:`` block) centres the prior on that
+mount instead; with ``ground.nominal: true`` frame 0's plane is the nominal one, known only
+to the prior's width.
 
 A keyframe plane known only loosely (tilt std above PLANE_SETTLED_DEG: a nominal frame 0, a
 stated uncertainty, a re-initialisation) is tested on every frame by :meth:`PlaneTracker.test`:
@@ -111,30 +116,6 @@ class InitialTilt:
         return self.chi2 >= CONSISTENT_CHI2
 
 
-class MeanMount:
-    """The latent mean mount: a Gaussian belief about the plane the ground keeps around the
-    rover, in every camera frame. It starts centred on frame 0's plane with the bobbing's
-    width; each keyframe's plane as the images and the carried plane alone give it (before the
-    prior) is one more sample of it, with the bobbing's variance added."""
-
-    def __init__(self, plane: Plane, bobbing: np.ndarray) -> None:
-        self.bobbing = bobbing
-        self.belief = PlaneBelief.from_covariance(plane, bobbing)
-
-    def prior(self) -> PlaneBelief:
-        """The prior on a keyframe's ground: the mean mount with its uncertainty and the
-        bobbing's."""
-        return PlaneBelief.from_covariance(self.belief.plane, self.belief.covariance + self.bobbing)
-
-    def sample(self, plane: PlaneBelief) -> None:
-        """Add a keyframe's ground (``plane``, without the prior) as a sample."""
-        try:
-            sample = PlaneBelief.from_covariance(plane.plane, plane.covariance + self.bobbing)
-            self.belief = fuse([self.belief, sample])
-        except (ValueError, np.linalg.LinAlgError):
-            pass
-
-
 class PlaneTracker:
     """What the tracker believes about its keyframe's plane.
 
@@ -150,10 +131,13 @@ class PlaneTracker:
                  keep_initial_tilt: bool = False) -> None:
         m = mounting or Mounting()
         self.sigmas = default_sigmas(plane, m.sigma_distance, m.sigma_deg)
-        bobbing = mounting_prior(plane, *self.sigmas)
-        self.mean_mount = None if m.mount is not None else MeanMount(plane, bobbing.covariance)
-        self._nominal = None if m.mount is None else mounting_prior(m.mount, *self.sigmas)
+        self.latent_mount = m.mount is None
         self._reference = plane if m.mount is None else m.mount  # the smoother's distance reference
+        prior = mounting_prior(self._reference, *self.sigmas)
+        #: the mounting prior on a keyframe's ground: the declared mount with the bobbing's
+        #: width, or frame 0's plane with the latent mean's uncertainty and the bobbing's
+        self.mounting = prior if not self.latent_mount else \
+            PlaneBelief(plane, 0.5 * prior.information)
         if m.initial_std is None:
             self.covariance = exact_covariance(plane)
         else:
@@ -164,11 +148,6 @@ class PlaneTracker:
         self._tilt_checks = 0
         self._model_variance = 0.0  # (m^2) the ground seen departs from a plane given as exact
         self.consistency = PlaneCovarianceCalibration()
-
-    @property
-    def mounting(self) -> PlaneBelief:
-        """The mounting prior on a keyframe's ground, as it stands now."""
-        return self._nominal if self.mean_mount is None else self.mean_mount.prior()
 
     @property
     def reported_covariance(self) -> np.ndarray:
@@ -311,11 +290,7 @@ class PlaneTracker:
                                                     - J[0, 0] ** 2 * self.covariance[0, 0]),
                              previous_variance=float(self.covariance[0, 0]),
                              mounting=(self._reference.distance, self.sigmas[0]),
-                             latent_mount=self.mean_mount is not None)
-            if self.mean_mount is not None:  # the images and the carried plane alone
-                self.mean_mount.sample(keyframe_plane(carried, measured=measured,
-                                                      distance_change=distance_change,
-                                                      tilt_change=tilt_change))
+                             latent_mount=self.latent_mount)
         except (ValueError, np.linalg.LinAlgError):
             return key.plane.in_frame(cur_from_key), None, fit.gain, fit.bias, None
         self.consistency.reanchored(carried, belief, prior, distance_change)

@@ -269,14 +269,17 @@ def test_init_yaml_sigmas_reach_the_tracker(tmp_path):
     odo = Odometry(cfg.camera, cfg.plane, cfg.region, mounting=cfg.mounting)
     assert np.all(np.sqrt(np.diag(odo._plane.covariance)) < 1e-5)  # frame 0's plane: exact
     assert odo._plane.sigmas == pytest.approx((0.05, 3.0))  # the defaults: d / 30 and 3 deg
-    assert odo._plane.mean_mount is not None
+    assert odo._plane.latent_mount
+    # the prior: frame 0's plane with the latent mean's uncertainty and the bobbing's
+    assert np.allclose(np.sqrt(np.diag(odo._plane.mounting.covariance)),
+                       np.sqrt(2) * np.array([0.05, math.radians(3), math.radians(3)]))
     p.write_text(yaml.safe_dump({**INIT, "ground": {**INIT["ground"], "sigma_distance": 0.02,
                                                     "sigma_deg": 1.5, "nominal": True}}))
     cfg = load_init(p)
     assert (cfg.sigma_distance, cfg.sigma_deg, cfg.nominal) == (0.02, 1.5, True)
     odo = Odometry(cfg.camera, cfg.plane, cfg.region, mounting=cfg.mounting)
     assert np.allclose(np.sqrt(np.diag(odo._plane.covariance)), [0.02, math.radians(1.5), math.radians(1.5)])
-    assert odo._plane.mean_mount is None
+    assert not odo._plane.latent_mount
     assert np.allclose(np.sqrt(np.diag(odo._plane.mounting.covariance)),
                        [0.02, math.radians(1.5), math.radians(1.5)])
 
