@@ -13,6 +13,10 @@ ground coordinates to pixels:
   centre at original pixel coordinate ``((i + 0.5)/s - 0.5, (j + 0.5)/s - 0.5)``, so the
   top-left original pixel centre stays at (0, 0) (docs/guide.md "File formats");
 * pixels whose ray misses the plane (above the horizon) get a plain sky value;
+* optionally (``psf``) the camera's optics blur before the pixel: a Gaussian PSF of ``psf``
+  px applied to the supersampled image, before its area average
+  (:class:`~monovo_cli.synth.render.PsfRenderer`; the image is rendered with a margin so
+  that its border pixels see the ground beyond the field of view);
 * optional exposure change (gain, bias), then Gaussian noise, rounding, 8-bit PNG.
 
 Poses: ``g_from_cam_k`` maps camera-k points to G. The world frame is camera 0's
@@ -75,8 +79,10 @@ from monovo_cli.synth.motion import (
 )
 from monovo_cli.synth.raycast import TERRAIN_SUPERSAMPLE, TerrainRenderer
 from monovo_cli.synth.render import (
+    MAX_PSF,
     SUPERSAMPLE,
     GroundRenderer,
+    PsfRenderer,
     default_camera,
     finish_frame,
     grid,
@@ -84,6 +90,7 @@ from monovo_cli.synth.render import (
     ground_region,
     pixel_size_on_plane,
     plane_homography,
+    render_shaded,
 )
 from monovo_cli.synth.rover import MER_FRAMES, MER_SIZE, mer_camera, rover_mount, rover_scene
 from monovo_cli.synth.terrain import TERRAINS, terrain_npz_bytes
@@ -183,7 +190,7 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
                texture: Path | str | None = None, max_translation: float | None = None,
                max_rotation_deg: float = 5.0, exposure: bool = False, shadow: float = 0.0,
                low_texture: bool = False, clean_frame0: bool = False, terrain: str | None = None,
-               progress: Callable[[int, int], None] | None = None) -> SynthSummary:
+               psf: float = 0.0, progress: Callable[[int, int], None] | None = None) -> SynthSummary:
     """Write a synthetic sequence (``drive``, ``mer``) or set of 2-frame sequences (``pairs``).
 
     ``frames``: frames of the drive (default 300; mer 100) or number of pairs (default 100).
@@ -207,6 +214,10 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
     a quarter of the contrast and no fine detail. ``clean_frame0``: frame 0 (of the drive,
     of every pair) without noise, only rounded -- the paper's synthetic experiment, where the
     ground's texture is exactly known; the other frames' noise is the same as without it.
+    ``psf``: the optics' blur, the standard deviation in pixels of a Gaussian point spread
+    function applied before the pixel (to the noise-free supersampled image, before its area
+    average, exposure and noise; the shadow lies on the ground, under the blur); 0 (the
+    default) renders exactly as without it, and synth.yaml records ``psf`` only when > 0.
     ``progress(done, total)`` is called after each drive frame / each pair.
     Raises InputError for bad arguments, OutputError if ``out_dir`` exists and is not empty
     or cannot be written.
@@ -248,6 +259,7 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
                   high=1.0 if drive else 0.5 * PAIR_DISTANCE)
     _check_number("max_rotation_deg", max_rotation_deg, low=0.0, high=30.0)
     _check_number("--shadow", shadow, low=0.0, high=1.0)
+    _check_number("--psf", psf, low=0.0, high=MAX_PSF)
     if out_dir.exists():
         if not out_dir.is_dir():
             raise OutputError(f"{out_dir}: exists and is not a directory")
@@ -299,6 +311,8 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
         "texture_texels": [int(tex.shape[1]), int(tex.shape[0])],
         "metres_per_texel": metres_per_texel, "supersample": SUPERSAMPLE,
     }
+    if psf > 0:  # (absent at 0: the default's synth.yaml is as before the option)
+        params["psf"] = float(psf)
     # All geometry first (it can still reject the arguments), then write.
     sequences: list[tuple[Path, list[np.ndarray], list[tuple[float, float]] | None, dict]] = []
     if drive:
@@ -347,11 +361,15 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
         atomic_write_text(out_dir / "synth.yaml",
                           yaml.safe_dump(params, default_flow_style=None, sort_keys=False))
     if rover:
-        renderer = TerrainRenderer(cam, tex, scene.terrain, sun_azimuth=scene.sun_azimuth)
+        def make(c: PinholeCamera):
+            return TerrainRenderer(c, tex, scene.terrain, sun_azimuth=scene.sun_azimuth)
         atomic_write_bytes(out_dir / "terrain.npz",
                            terrain_npz_bytes(scene.terrain, scene.heights_bounds, scene.poses))
     else:
-        renderer = GroundRenderer(cam, tex)
+        def make(c: PinholeCamera):
+            return GroundRenderer(c, tex)
+    renderer = PsfRenderer(cam, make, float(psf)) if psf > 0 else make(cam)
+    shadow_row = int(round(height * (1.0 - shadow))) if shadow > 0 else None
     distance = 0.0
     for i, ((seq_dir, poses, photometric, seq_params), region) in enumerate(
             zip(sequences, regions)):
@@ -359,9 +377,7 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
         _make_dir(frames_dir)
         for k, g in enumerate(poses):
             gain, bias = photometric[k] if photometric else (1.0, 0.0)
-            ground = renderer.render(g)
-            if shadow > 0:
-                ground[int(round(height * (1.0 - shadow))):] *= np.float32(0.5)
+            ground = render_shaded(renderer, g, shadow_row)
             img = finish_frame(ground, noise_rng, float(noise_var), gain, bias)
             if clean_frame0 and k == 0:  # (the noise was still drawn: frame 1's stays the same)
                 img = finish_frame(ground, noise_rng, 0.0, gain, bias)
