@@ -14,8 +14,10 @@ import cv2
 import numpy as np
 import pytest
 import yaml
+from click.testing import CliRunner
 
 from monovo_cli import synth
+from monovo_cli.cli import main
 from monovo_cli.errors import InputError
 from monovo_cli.synth.render import (
     SUPERSAMPLE,
@@ -24,9 +26,13 @@ from monovo_cli.synth.render import (
     padded_camera,
     plane_homography,
 )
-from tests.helpers.cli import one_error_line, run
 
 SMALL = (128, 96)
+
+
+def run(*args) -> tuple[int, str]:
+    r = CliRunner().invoke(main, [str(a) for a in args])
+    return r.exit_code, r.output
 
 
 def _files(root: Path) -> dict[str, bytes]:
@@ -131,7 +137,8 @@ def test_cli_bad_psf_is_one_line_exit_2(tmp_path, value):
     code, output = run("synth", tmp_path / "out", "--frames", "2", "--size", "32x32",
                        "--psf", value)
     assert code == 2
-    assert one_error_line(output).startswith("Error: --psf ")
+    lines = [ln for ln in output.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("Error: --psf "), output
     assert not (tmp_path / "out").exists()
 
 
