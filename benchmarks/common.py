@@ -217,6 +217,17 @@ def pair_scenes(pairs_dir: Path):
     return cam, tex, scenes
 
 
+def pair_renderer(pairs_dir: Path, cam, tex):
+    """synth's renderer of a folder written by ``synthesize(preset="pairs")``: the camera's
+    optical blur (synth.yaml's ``psf``, absent when there is none) in front of the texture."""
+    import yaml
+
+    from monovo_cli.synth.render import ground_renderer
+
+    params = yaml.safe_load((Path(pairs_dir) / "synth.yaml").read_text())
+    return ground_renderer(cam, tex, psf=float(params.get("psf", 0.0)))
+
+
 def drive_arguments(doc: str | None):
     """Parse the options of a one-drive benchmark: ``--frames --size --noise-var --seed``.
 

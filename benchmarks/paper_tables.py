@@ -51,10 +51,11 @@ AXES = ["tx (m)", "ty (m)", "tz (m)", "rx (deg)", "ry (deg)", "rz (deg)"]
 
 
 def run_pairs(root: Path, n_pairs: int, noise_var: float, seed: int, options: TrackOptions,
-              clean_frame0: bool = True):
-    """Errors (n, 6), converged flags (n,), wall and CPU seconds per pair (n,) (n,)."""
+              clean_frame0: bool = True, *, texture=None, psf: float = 0.0):
+    """Errors (n, 6), converged flags (n,), wall and CPU seconds per pair (n,) (n,).
+    ``texture`` and ``psf`` are synth's (default: the procedural texture, no optical blur)."""
     synthesize(root, preset="pairs", frames=n_pairs, noise_var=noise_var, seed=seed,
-               clean_frame0=clean_frame0)
+               clean_frame0=clean_frame0, texture=texture, psf=psf)
     errs, _, secs, cpu = track_pairs(root, options)
     ok = (np.abs(errs[:, :3]).max(1) < 0.05) & (np.abs(errs[:, 3:]).max(1) < 0.05)
     return errs, ok, secs, cpu

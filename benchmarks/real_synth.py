@@ -59,12 +59,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from benchmarks.common import AXES, add_frame0_option, load, pair_scenes
+from benchmarks.common import AXES, add_frame0_option, load, pair_renderer, pair_scenes
 from benchmarks.crb import QUANTISATION_VAR, bound_levels, bound_std, information
 from benchmarks.paper_tables import track_pairs
 from benchmarks.peers import EccPeer, OrbPeer, monovo_on_drive, peer_on_drive, peer_on_pairs
 from monovo_cli.core.options import TrackOptions
-from monovo_cli.synth.render import GroundRenderer
 from monovo_cli.synth.write import synthesize
 
 RENDERS = Path(tempfile.gettempdir()) / "monovo-bench-renders"
@@ -294,7 +293,7 @@ def crb_stds(pairs: Path, var: float) -> tuple[np.ndarray, np.ndarray]:
     cache = pairs / "crb_information.npz"
     if not cache.exists():
         cam, tex, scenes = pair_scenes(pairs)
-        renderer = GroundRenderer(cam, tex)
+        renderer = pair_renderer(pairs, cam, tex)
         infos = [information(cam, tex, sc, renderer) for sc in scenes]
         tmp = pairs / f".crb.{os.getpid()}.npz"
         np.savez(tmp, seen=np.array([i for i, _, _ in infos]),

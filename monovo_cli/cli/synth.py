@@ -43,6 +43,10 @@ def _default(name: str):
 @click.option("--max-translation", type=click.FloatRange(min=0.0), default=None,
               help="pairs: translations uniform in +-this per axis, m [default: 10 m at 100 m].")
 @click.option("--exposure", is_flag=True, help="Vary gain and bias from frame to frame.")
+@click.option("--psf", type=float, cls=LibraryDefault, default_text=_default("psf"),
+              metavar="SIGMA_PX",
+              help="Blur of the camera's optics before the pixel: the standard deviation of a "
+                   "Gaussian point spread function, in pixels (0: none).")
 @click.option("--clean-frame0", is_flag=True,
               help="Frame 0 (of the drive, of each pair) without noise: the paper's synthetic "
                    "experiment, where the ground's texture is exactly known.")
@@ -53,7 +57,7 @@ def _default(name: str):
 @overwrite_option("Replace OUT if it exists.")
 @common
 def synth(verbosity, out, preset, frames, size, terrain, noise_var, seed, texture, max_translation,
-          exposure, clean_frame0, init_pose, overwrite):
+          exposure, psf, clean_frame0, init_pose, overwrite):
     """Write a synthetic sequence with ground truth into OUT."""
     from monovo_cli.synth.write import synthesize
 
@@ -72,6 +76,7 @@ def synth(verbosity, out, preset, frames, size, terrain, noise_var, seed, textur
         s = synthesize(out, frames=frames, size=size, texture=texture, terrain=terrain,
                        max_translation=max_translation, exposure=exposure,
                        clean_frame0=clean_frame0, progress=bar,
-                       **given(preset=preset, noise_var=noise_var, seed=seed, init_pose=init_pose))
+                       **given(preset=preset, noise_var=noise_var, seed=seed, psf=psf,
+                               init_pose=init_pose))
     if not verbosity.quiet:
         click.echo(f"wrote {s.sequences} sequence(s) of {s.frames_per_sequence} frames to {out}")

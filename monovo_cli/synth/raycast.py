@@ -333,6 +333,14 @@ class TerrainRenderer:
 
     def render(self, g_from_cam: np.ndarray) -> np.ndarray:
         """Noise-free float32 image (height x width) of the terrain seen from ``g_from_cam``."""
+        out = self.render_fine(g_from_cam)
+        if self.s > 1:
+            return cv2.resize(out, (self.cam.width, self.cam.height), interpolation=cv2.INTER_AREA)
+        return out
+
+    def render_fine(self, g_from_cam: np.ndarray) -> np.ndarray:
+        """The supersampled image (height * s x width * s, float32) that :meth:`render`
+        area-averages."""
         cam, s = self.cam, self.s
         R = g_from_cam[:3, :3].astype(np.float32)
         rx, ry = self._rx[None, :], self._ry[:, None]
@@ -341,10 +349,7 @@ class TerrainRenderer:
         out = np.full(len(d[0]), self.sky, np.float32)
         if len(idx):
             out[idx] = self._shade(g_from_cam, [c[idx] for c in d], t, rock, rel, n)
-        out = out.reshape(cam.height * s, cam.width * s)
-        if s > 1:
-            return cv2.resize(out, (cam.width, cam.height), interpolation=cv2.INTER_AREA)
-        return out
+        return out.reshape(cam.height * s, cam.width * s)
 
     def _shade(self, g_from_cam, d, t, rock, rel, n) -> np.ndarray:
         """Grey values of the hits: the draped texture (trilinear mip-map), rock albedo, sun."""

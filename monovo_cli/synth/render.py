@@ -1,9 +1,18 @@
 """Rendering textured ground seen by a pinhole camera: supersampled plane homographies, sky, noise.
+
+An optional optical blur (:class:`PsfRenderer`, ``synth --psf``) acts before the pixel: a
+Gaussian point spread function blurs the supersampled image, which is then area-averaged
+into pixels. A blur applied after the pixel's area average would come too late: the
+texture's grain beyond the pixel grid's Nyquist frequency has then already aliased into the
+samples, and no blur of the samples takes it out again.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from dataclasses import replace
+from typing import Protocol
 
 import cv2
 import numpy as np
@@ -132,6 +141,14 @@ class GroundRenderer:
 
     def render(self, g_from_cam: np.ndarray) -> np.ndarray:
         """Noise-free float32 image (height x width) of the ground seen from ``g_from_cam``."""
+        out = self.render_fine(g_from_cam)
+        if self.s > 1:
+            return cv2.resize(out, (self.cam.width, self.cam.height), interpolation=cv2.INTER_AREA)
+        return out.copy()
+
+    def render_fine(self, g_from_cam: np.ndarray) -> np.ndarray:
+        """The supersampled image (height * s x width * s, float32) that :meth:`render`
+        area-averages: the renderer's own buffer, overwritten by the next call."""
         cam, tex, s = self.cam, self.texture, self.s
         W, H = cam.width, cam.height
         sw, sh = W * s, H * s
@@ -190,9 +207,98 @@ class GroundRenderer:
             gx = nrm[0] / cam.fx * (xs - cam.cx)
             gy = nrm[1] / cam.fy * (ys - cam.cy) + nrm[2]
             out[(gy[:, None] + gx[None, :]) <= 0.0] = self.sky
+        return out
+
+
+class FineRenderer(Protocol):
+    """What :class:`PsfRenderer` wraps: GroundRenderer, raycast.TerrainRenderer."""
+
+    s: int
+
+    def render_fine(self, g_from_cam: np.ndarray) -> np.ndarray: ...
+
+
+MAX_PSF = 10.0  # px; wider is no longer a focused camera (and the margins grow with it)
+
+
+def psf_margin(sigma: float) -> int:
+    """Pixels rendered beyond each edge of the image for a PSF of ``sigma`` px: the reach
+    of OpenCV's Gaussian kernel (4 sigma), so that the image's border pixels are blurred
+    with the ground outside the field of view, as a lens does."""
+    return int(math.ceil(4.0 * sigma))
+
+
+def padded_camera(cam: PinholeCamera, margin: int) -> PinholeCamera:
+    """``cam`` with ``margin`` more pixels on every side (the same rays for the same pixels)."""
+    return replace(cam, width=cam.width + 2 * margin, height=cam.height + 2 * margin,
+                   cx=cam.cx + margin, cy=cam.cy + margin)
+
+
+class PsfRenderer:
+    """A camera whose optics blur before the pixel: a Gaussian PSF of standard deviation
+    ``sigma`` px applied to the supersampled image (``sigma * s`` supersamples), which is
+    then area-averaged into pixels, as the renderer does without it.
+
+    ``make(camera)`` builds the wrapped renderer (GroundRenderer, TerrainRenderer) for a
+    camera padded by :func:`psf_margin` on every side; the padding is cropped after the
+    blur. ``render`` = ``pixels(render_fine(g))``; between the two a caller may change the
+    supersampled image (``fine_row`` maps an image row to the first of its supersample rows),
+    e.g. to shade the ground before the optics see it.
+    """
+
+    def __init__(self, cam: PinholeCamera, make: Callable[[PinholeCamera], FineRenderer],
+                 sigma: float) -> None:
+        if not (math.isfinite(sigma) and 0.0 < sigma <= MAX_PSF):
+            raise ValueError(f"PSF sigma {sigma!r} px: must be in (0, {MAX_PSF:g}]")
+        self.cam, self.sigma = cam, float(sigma)
+        self.margin = psf_margin(self.sigma)
+        self.inner = make(padded_camera(cam, self.margin))
+        self.s = int(self.inner.s)
+
+    def fine_row(self, row: int) -> int:
+        """The first supersample row of image row ``row`` in :meth:`render_fine`'s image."""
+        return (row + self.margin) * self.s
+
+    def render_fine(self, g_from_cam: np.ndarray) -> np.ndarray:
+        """The padded supersampled image before the optics (the wrapped renderer's buffer)."""
+        return self.inner.render_fine(g_from_cam)
+
+    def pixels(self, fine: np.ndarray) -> np.ndarray:
+        """The blurred, area-averaged and cropped float32 image (height x width)."""
+        s, m, cam = self.s, self.margin, self.cam
+        blurred = cv2.GaussianBlur(fine, (0, 0), self.sigma * s, borderType=cv2.BORDER_REPLICATE)
         if s > 1:
-            return cv2.resize(out, (W, H), interpolation=cv2.INTER_AREA)
-        return out.copy()
+            blurred = cv2.resize(blurred, (cam.width + 2 * m, cam.height + 2 * m),
+                                 interpolation=cv2.INTER_AREA)
+        return np.ascontiguousarray(blurred[m:m + cam.height, m:m + cam.width])
+
+    def render(self, g_from_cam: np.ndarray) -> np.ndarray:
+        """Noise-free float32 image (height x width) seen through the blurring optics."""
+        return self.pixels(self.render_fine(g_from_cam))
+
+
+def ground_renderer(cam: PinholeCamera, texture: GroundTexture, *, psf: float = 0.0,
+                    supersample: int = SUPERSAMPLE) -> GroundRenderer | PsfRenderer:
+    """GroundRenderer of ``cam``, behind a Gaussian PSF of ``psf`` px when ``psf > 0``."""
+    if psf > 0:
+        return PsfRenderer(cam, lambda c: GroundRenderer(c, texture, supersample=supersample), psf)
+    return GroundRenderer(cam, texture, supersample=supersample)
+
+
+def render_shaded(renderer, g_from_cam: np.ndarray, shadow_row: int | None) -> np.ndarray:
+    """The noise-free float image of one frame of ``renderer`` (GroundRenderer,
+    TerrainRenderer or PsfRenderer), its rows from ``shadow_row`` on darkened (x0.5): a
+    shadow on the ground, fixed to the camera. Behind a PSF the shadow darkens the ground
+    before the optics blur it; without one the rendered pixels are darkened."""
+    if isinstance(renderer, PsfRenderer):
+        fine = renderer.render_fine(g_from_cam)
+        if shadow_row is not None:
+            fine[renderer.fine_row(shadow_row):] *= np.float32(0.5)
+        return renderer.pixels(fine)
+    ground = renderer.render(g_from_cam)
+    if shadow_row is not None:
+        ground[shadow_row:] *= np.float32(0.5)
+    return ground
 
 
 def render_ground(cam: PinholeCamera, g_from_cam: np.ndarray, texture: GroundTexture, *,

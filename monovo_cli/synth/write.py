@@ -13,6 +13,10 @@ ground coordinates to pixels:
   centre at original pixel coordinate ``((i + 0.5)/s - 0.5, (j + 0.5)/s - 0.5)``, so the
   top-left original pixel centre stays at (0, 0) (docs/guide.md "File formats");
 * pixels whose ray misses the plane (above the horizon) get a plain sky value;
+* optionally (``psf``) the camera's optics blur before the pixel: a Gaussian PSF of ``psf``
+  px applied to the supersampled image, before its area average
+  (:class:`~monovo_cli.synth.render.PsfRenderer`; the image is rendered with a margin so
+  that its border pixels see the ground beyond the field of view);
 * optional exposure change (gain, bias), then Gaussian noise, rounding, 8-bit PNG.
 
 Poses: ``g_from_cam_k`` maps camera-k points to G. The world frame is camera 0's
@@ -53,11 +57,8 @@ import yaml
 
 from monovo_cli.errors import InputError, OutputError
 from monovo_cli.geometry.camera import PinholeCamera
-from monovo_cli.geometry.lie import make_pose, se3_inv
-from monovo_cli.geometry.plane import Plane
+from monovo_cli.geometry.lie import make_pose
 from monovo_cli.io.atomic import atomic_write_bytes, atomic_write_text
-from monovo_cli.io.config import dump_init
-from monovo_cli.io.formats import FrameStatus, MotionRow, fmt, motion_csv_text, tum_text
 from monovo_cli.synth.gravel import gravel_texture
 from monovo_cli.synth.motion import (
     DRIVE_MAST_HEIGHT,
@@ -77,17 +78,20 @@ from monovo_cli.synth.motion import (
 )
 from monovo_cli.synth.raycast import TERRAIN_SUPERSAMPLE, TerrainRenderer
 from monovo_cli.synth.render import (
+    MAX_PSF,
     SUPERSAMPLE,
     GroundRenderer,
+    PsfRenderer,
     default_camera,
     finish_frame,
     grid,
-    ground_in_camera,
     ground_region,
     pixel_size_on_plane,
     plane_homography,
+    render_shaded,
 )
 from monovo_cli.synth.rover import MER_FRAMES, MER_SIZE, mer_camera, rover_mount, rover_scene
+from monovo_cli.synth.sequence_files import INIT_POSES, make_dir, write_png, write_sequence
 from monovo_cli.synth.terrain import TERRAINS, terrain_npz_bytes
 from monovo_cli.synth.texture import (
     TEXTURE_MEAN,
@@ -101,11 +105,6 @@ from monovo_cli.version import __version__
 
 PRESETS = ("drive", "pairs", "mer")
 TEXTURES = ("procedural", "gravel")  # built-in names of texture=
-INIT_POSES = {  # init_pose -> the note that heads init.yaml
-    "frame0": "# The ground below is frame 0's: the wheels' plane seen from the camera, its bob\n"
-              "# included (the terrain differs from it; see terrain.npz).\n",
-    "nominal": "# The ground below is the nominal mount: the wheels' plane seen from the camera's\n"
-               "# mounting, not frame 0's (bobbing and terrain differ; see terrain.npz).\n"}
 MIN_SIZE = 32
 MAX_SIZE = 8192
 
@@ -121,50 +120,6 @@ class SynthSummary:
     sequences: int  # 1 for drive, N for pairs
     frames_per_sequence: int
     distance_m: float  # camera path length (drive) or sum of pair translations (pairs)
-
-
-# --------------------------------------------------------------------------- outputs
-
-
-def _write_sequence(seq_dir: Path, cam: PinholeCamera, poses: list[np.ndarray],
-                    region: list[int], params: dict,
-                    photometric: list[tuple[float, float]] | None,
-                    plane_pose: np.ndarray | None = None, nominal: bool = False) -> None:
-    """init.yaml, ground truth, synth.yaml (+ photometric.csv) of one sequence; frames are
-    written by the caller as they are rendered. init.yaml's plane is ``z_G = 0`` seen from
-    ``plane_pose`` (default: ``poses[0]``), declared the nominal mount if ``nominal``."""
-    inv0 = se3_inv(poses[0])
-    traj = [np.eye(4)] + [inv0 @ g for g in poses[1:]]
-    rows = [MotionRow(frame=k, prev_from_cur=se3_inv(poses[k - 1]) @ poses[k], msd=0.0,
-                      iterations=0, points=0, status=FrameStatus.OK) for k in range(1, len(poses))]
-    n, d = ground_in_camera(poses[0] if plane_pose is None else plane_pose)
-    dump_init(seq_dir / "init.yaml", cam, Plane(n + 0.0, d), tuple(region),  # (+ 0.0: no -0.0)
-              nominal=nominal)
-    atomic_write_text(seq_dir / "groundtruth.tum", tum_text([float(k) for k in range(len(poses))],
-                                                            traj))
-    atomic_write_text(seq_dir / "groundtruth_motion.csv", motion_csv_text(rows))
-    atomic_write_text(seq_dir / "synth.yaml",
-                      yaml.safe_dump(params, default_flow_style=None, sort_keys=False))
-    if photometric is not None:
-        lines = ["frame,gain,bias"] + [f"{k},{fmt(g)},{fmt(b)}"
-                                       for k, (g, b) in enumerate(photometric)]
-        atomic_write_text(seq_dir / "photometric.csv", "\n".join(lines) + "\n")
-
-
-def _write_png(path: Path, img: np.ndarray) -> None:
-    try:
-        ok = cv2.imwrite(str(path), img)
-    except cv2.error:
-        ok = False
-    if not ok:
-        raise OutputError(f"{path}: cannot write PNG")
-
-
-def _make_dir(path: Path) -> None:
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(f"{path}: cannot create directory ({exc.strerror or exc})") from None
 
 
 # --------------------------------------------------------------------------- entry point
@@ -187,7 +142,8 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
                texture: Path | str | None = None, max_translation: float | None = None,
                max_rotation_deg: float = 5.0, exposure: bool = False, shadow: float = 0.0,
                low_texture: bool = False, clean_frame0: bool = False, terrain: str | None = None,
-               init_pose: str = "frame0", progress: Callable[[int, int], None] | None = None) -> SynthSummary:
+               init_pose: str = "frame0", psf: float = 0.0,
+               progress: Callable[[int, int], None] | None = None) -> SynthSummary:
     """Write a synthetic sequence (``drive``, ``mer``) or set of 2-frame sequences (``pairs``).
 
     ``frames``: frames of the drive (default 300; mer 100) or number of pairs (default 100).
@@ -214,6 +170,10 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
     a quarter of the contrast and no fine detail. ``clean_frame0``: frame 0 (of the drive,
     of every pair) without noise, only rounded -- the paper's synthetic experiment, where the
     ground's texture is exactly known; the other frames' noise is the same as without it.
+    ``psf``: the optics' blur, the standard deviation in pixels of a Gaussian point spread
+    function applied before the pixel (to the noise-free supersampled image, before its area
+    average, exposure and noise; the shadow lies on the ground, under the blur); 0 (the
+    default) renders exactly as without it, and synth.yaml records ``psf`` only when > 0.
     ``progress(done, total)`` is called after each drive frame / each pair.
     Raises InputError for bad arguments, OutputError if ``out_dir`` exists and is not empty
     or cannot be written.
@@ -259,6 +219,7 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
                   high=1.0 if drive else 0.5 * PAIR_DISTANCE)
     _check_number("max_rotation_deg", max_rotation_deg, low=0.0, high=30.0)
     _check_number("--shadow", shadow, low=0.0, high=1.0)
+    _check_number("--psf", psf, low=0.0, high=MAX_PSF)
     if out_dir.exists():
         if not out_dir.is_dir():
             raise OutputError(f"{out_dir}: exists and is not a directory")
@@ -311,6 +272,8 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
         "texture_texels": [int(tex.shape[1]), int(tex.shape[0])],
         "metres_per_texel": metres_per_texel, "supersample": SUPERSAMPLE,
     }
+    if psf > 0:  # (absent at 0: the default's synth.yaml is as before the option)
+        params["psf"] = float(psf)
     # All geometry first (it can still reject the arguments), then write.
     sequences: list[tuple[Path, list[np.ndarray], list[tuple[float, float]] | None, dict]] = []
     if drive:
@@ -354,36 +317,38 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
             raise InputError(f"--size {width}x{height}: the camera sees no ground at frame 0")
         regions.append(region)
 
-    _make_dir(out_dir)
+    make_dir(out_dir)
     if not drive:
         atomic_write_text(out_dir / "synth.yaml",
                           yaml.safe_dump(params, default_flow_style=None, sort_keys=False))
     if rover:
-        renderer = TerrainRenderer(cam, tex, scene.terrain, sun_azimuth=scene.sun_azimuth)
+        def make(c: PinholeCamera):
+            return TerrainRenderer(c, tex, scene.terrain, sun_azimuth=scene.sun_azimuth)
         atomic_write_bytes(out_dir / "terrain.npz",
                            terrain_npz_bytes(scene.terrain, scene.heights_bounds, scene.poses))
     else:
-        renderer = GroundRenderer(cam, tex)
+        def make(c: PinholeCamera):
+            return GroundRenderer(c, tex)
+    renderer = PsfRenderer(cam, make, float(psf)) if psf > 0 else make(cam)
+    shadow_row = int(round(height * (1.0 - shadow))) if shadow > 0 else None
     distance = 0.0
     for i, ((seq_dir, poses, photometric, seq_params), region) in enumerate(
             zip(sequences, regions)):
         frames_dir = seq_dir / "frames"
-        _make_dir(frames_dir)
+        make_dir(frames_dir)
         for k, g in enumerate(poses):
             gain, bias = photometric[k] if photometric else (1.0, 0.0)
-            ground = renderer.render(g)
-            if shadow > 0:
-                ground[int(round(height * (1.0 - shadow))):] *= np.float32(0.5)
+            ground = render_shaded(renderer, g, shadow_row)
             img = finish_frame(ground, noise_rng, float(noise_var), gain, bias)
             if clean_frame0 and k == 0:  # (the noise was still drawn: frame 1's stays the same)
                 img = finish_frame(ground, noise_rng, 0.0, gain, bias)
-            _write_png(frames_dir / f"frame_{k:06d}.png", img)
+            write_png(frames_dir / f"frame_{k:06d}.png", img)
             if drive and progress is not None:
                 progress(k + 1, frames)
         plane_pose = None
         if rover:
             plane_pose = nominal if init_pose == "nominal" else bobbed_mount(scene.bob[0], nominal)
-        _write_sequence(seq_dir, cam, poses, region, seq_params, photometric,
+        write_sequence(seq_dir, cam, poses, region, seq_params, photometric,
                         plane_pose=plane_pose, nominal=init_pose == "nominal")
         if rover:
             init = seq_dir / "init.yaml"

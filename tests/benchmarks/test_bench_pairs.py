@@ -11,13 +11,13 @@ import cv2
 import numpy as np
 import pytest
 
-from benchmarks.common import pair_scenes
-from monovo_cli.synth.render import GroundRenderer
+from benchmarks.common import pair_renderer, pair_scenes
 from monovo_cli.synth.write import synthesize
 
 
-@pytest.mark.parametrize("texture", [None, "gravel", "image"])
-def test_pair_scenes_rerender_the_frames(tmp_path, texture):
+@pytest.mark.parametrize("texture, psf", [(None, 0.0), ("gravel", 0.0), ("image", 0.0),
+                                          ("gravel", 0.5)])
+def test_pair_scenes_rerender_the_frames(tmp_path, texture, psf):
     if texture == "image":
         rng = np.random.default_rng(5)
         img = cv2.resize(rng.uniform(0, 255, (40, 40)), (256, 256), interpolation=cv2.INTER_CUBIC)
@@ -25,9 +25,9 @@ def test_pair_scenes_rerender_the_frames(tmp_path, texture):
         cv2.imwrite(str(texture), np.clip(img, 0, 255).astype(np.uint8))
     root = tmp_path / "pairs"
     synthesize(root, preset="pairs", frames=2, size=(96, 80), noise_var=0.0, seed=3,
-               texture=texture)
+               texture=texture, psf=psf)
     cam, tex, scenes = pair_scenes(root)
-    renderer = GroundRenderer(cam, tex)
+    renderer = pair_renderer(root, cam, tex)  # the optics too (synth.yaml's psf)
     assert len(scenes) == 2
     for sc in scenes:
         for k, g in enumerate((sc.g_from_cam0, sc.g_from_cam1)):
