@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import importlib
 from pathlib import Path
 
 import click
 
 from monovo_cli.cli.group import common, with_flags
-from monovo_cli.cli.options import LibraryDefault
+from monovo_cli.cli.options import LibraryDefault, constant_default
 
 # monovo_cli.io.trajectories.FORMATS, written out so that the command line loads no numpy
 # (tests/cli/test_eval.py checks that the two agree)
@@ -42,13 +41,13 @@ def parse_segments(ctx, param, value):  # noqa: ARG001
                    "trajectory plot use the aligned estimate. Give it after the files.")
 @click.option("--max-dt", type=click.FloatRange(min=0.0, min_open=True), cls=LibraryDefault,
               default_text=lambda: "{} s, or half the median frame interval if less".format(
-                  importlib.import_module("monovo_cli.evaluation.metrics").MAX_DT),
+                  constant_default("monovo_cli.evaluation.metrics", "MAX_DT")()),
               help="Match each estimated pose to the true pose nearest in time within this "
                    "many seconds.")
 @click.option("--segments", callback=parse_segments, metavar="L1,L2,...",
               cls=LibraryDefault,
-              default_text=lambda: ",".join(f"{v:g}" for v in importlib.import_module(
-                  "monovo_cli.evaluation.segments").DEFAULT_SEGMENTS) + " m",
+              default_text=lambda: ",".join(f"{v:g}" for v in constant_default(
+                  "monovo_cli.evaluation.segments", "DEFAULT_SEGMENTS")()) + " m",
               help="Segment lengths (m) of the errors by travelled distance (KITTI-style "
                    "translation % and deg/m).")
 @click.option("--partial", is_flag=True,

@@ -7,8 +7,6 @@ into the value the library wants or raises ``click.BadParameter`` quoting the ba
 from __future__ import annotations
 
 import functools
-import importlib
-import inspect
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,6 +15,7 @@ from typing import Any
 import click
 
 import monovo_cli.core.options as core_options
+from monovo_cli.cli.library_source import library_value
 
 # --------------------------------------------------------------------------- every command
 
@@ -174,7 +173,8 @@ class LibraryDefault(click.Option):
     Its click default is None, "not given": the command passes on only what was given
     (see :func:`given`) and the library's own default applies to the rest. Help shows the
     library's default as ``default_text()`` returns it, looked up only when help is shown
-    (it may import numpy and OpenCV); None shows nothing.
+    (read from the library's source, see :func:`library_value`, so that help loads neither
+    numpy nor OpenCV); None shows nothing.
     """
 
     def __init__(self, *args, default_text: Callable[[], str | None], **kwargs) -> None:
@@ -191,13 +191,22 @@ class LibraryDefault(click.Option):
 
 def keyword_default(module: str, function: str, name: str) -> Callable[[], str]:
     """``default_text`` of :class:`LibraryDefault`: the default of the keyword argument
-    ``name`` of ``module.function``."""
+    ``name`` of ``module.function`` (see :func:`library_value`)."""
 
     def text() -> str:
-        fn = getattr(importlib.import_module(module), function)
-        return str(inspect.signature(fn).parameters[name].default)
+        return str(library_value(module, function, name))
 
     return text
+
+
+def constant_default(module: str, name: str) -> Callable[[], object]:
+    """The module-level constant ``module.name`` (see :func:`library_value`), looked up when
+    called."""
+
+    def value() -> object:
+        return library_value(module, None, name)
+
+    return value
 
 
 def given(**values: Any) -> dict[str, Any]:
