@@ -45,12 +45,17 @@ from monovo_cli.cli.options import (
               help="Continue the run interrupted in -o DIR from its last checkpoint, with the "
                    "same inputs and options; the outputs are those of an uninterrupted run. "
                    "Without a checkpoint, start from frame 0; a finished run is left as it is.")
+@click.option("--threads", type=click.IntRange(min=1), metavar="N", cls=LibraryDefault,
+              default_text=lambda: "all cores",
+              help="Threads for one run: from 2 on, frames are decoded on a thread of their "
+                   "own while the one before is estimated. The outputs are the same bytes "
+                   "whatever N.")
 @side_inputs()
 @smooth_option
 @track_options(LOOP)
 @common
 def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, skip_bad_frames,
-          terrain_out, checkpoint_every, resume, mask, prior, covariance, smooth, options):
+          terrain_out, checkpoint_every, resume, threads, mask, prior, covariance, smooth, options):
     """Estimate the motion of every frame of SEQ; write motion.csv and the trajectory.
 
     With -o DIR also trajectory.png, the path seen from above on the ground plane,
@@ -82,7 +87,8 @@ def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, ski
                            model=model, overwrite=overwrite, skip_bad_frames=skip_bad_frames,
                            topic=topic, terrain_out=terrain_out, progress=bar,
                            resume=resume,
-                           **given(smooth=smooth, checkpoint_every=checkpoint_every))
+                           **given(smooth=smooth, checkpoint_every=checkpoint_every,
+                                   threads=threads))
     if s is None:
         if not verbosity.quiet:
             click.echo(f"nothing to resume: the run in {out} is finished")

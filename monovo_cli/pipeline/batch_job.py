@@ -266,7 +266,7 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: JobOptions | No
                 mask=Path(job.mask) if job.mask else None,
                 prior=_folder(seq_dir) / job.prior if job.prior else None,
                 covariance=out_dir / job.covariance if job.covariance else None, topic=job.topic,
-                smooth=job.smooth)
+                smooth=job.smooth, threads=1)  # (one thread per worker)
         n_frames, fingerprint = _input_fingerprint(seq_dir, job.prior, job.topic)
         if run.frames != n_frames:
             raise RuntimeError(f"{seq_dir}: {run.frames} frames tracked, expected {n_frames}")

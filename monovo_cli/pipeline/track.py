@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 import signal
 import sys
 import threading
@@ -140,7 +141,7 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                    groundtruth: Path | None = None, mask: Path | None = None,
                    prior: Path | None = None, covariance: Path | None = None,
                    topic: str | None = None, terrain_out: bool = False, smooth: bool = True,
-                   report: bool = True, resume: bool = False,
+                   report: bool = True, resume: bool = False, threads: int | None = None,
                    progress: Callable[[int, int], None] | None = None) -> TrackRun | None:
     """``monovo track``: estimate every frame's motion and write motion.csv, trajectory.csv
     and trajectory.tum (docs/guide.md "File formats").
@@ -168,7 +169,9 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     from its checkpoint, or from frame 0 when it has none; an InputError when the
     checkpoint was taken with other inputs or options. ``progress(done, total)`` is called
     after every frame. Returns the run (:class:`~monovo_cli.core.run.TrackRun`), or None
-    when ``resume`` finds the run in ``out_dir`` finished (nothing to do).
+    when ``resume`` finds the run in ``out_dir`` finished (nothing to do). ``threads``: from 2
+    on, frames are decoded on a thread of their own ahead of the tracker
+    (:mod:`monovo_cli.pipeline.read_ahead`); None: all cores.
     """
     check_covariance_path(covariance, out_dir)
     if resume and out_dir is None:
@@ -225,7 +228,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                         terrain=terrain_out and out_dir is not None, stopped=stopped,
                         thumbnails=THUMBNAILS if report and out_dir is not None else 0,
                         thumbnail_side=THUMBNAIL_SIDE,
-                        rerun_replaces=out_dir is not None)
+                        rerun_replaces=out_dir is not None,
+                        threads=(os.cpu_count() or 1) if threads is None else threads)
 
     if saved is not None:
         tracking.restore(saved.state)

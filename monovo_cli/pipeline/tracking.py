@@ -37,6 +37,7 @@ from monovo_cli.io.config import InitConfig, check_frame_size, load_init
 from monovo_cli.io.sources import Frame, FrameSource, find_init_yaml, open_frames, resolve_sequence
 from monovo_cli.mapping.smoothing import SmoothedDrive, smooth_drive
 from monovo_cli.mapping.terrain_map import TerrainMap
+from monovo_cli.pipeline.read_ahead import read_frames
 from monovo_cli.pipeline.threads import one_blas_thread
 
 log = logging.getLogger(__name__)
@@ -132,7 +133,8 @@ class Tracking:
     ``thumbnails`` > 0 keeps a small grey copy (uint8, at most ``thumbnail_side`` px on its
     longer side) of at most that many keyframes' images (:attr:`thumbnails`, frame index ->
     image): when there are more, every other one is dropped, frame 0 kept, so those kept
-    stay spread evenly over the drive.
+    stay spread evenly over the drive. ``threads`` from 2 on decodes the frames on a thread of
+    their own, ahead of the tracker (:mod:`monovo_cli.pipeline.read_ahead`; the same results).
     """
 
     def __init__(self, seq: OpenedSequence, options: TrackOptions | None = None, *,
@@ -140,13 +142,15 @@ class Tracking:
                  first_keyframe: Keyframe | None = None, skip_bad_frames: bool = False,
                  smooth: bool = True, terrain: bool = False,
                  stopped: Callable[[int], str] | None = None, thumbnails: int = 0,
-                 thumbnail_side: int = 240, rerun_replaces: bool = False) -> None:
+                 thumbnail_side: int = 240, rerun_replaces: bool = False,
+                 threads: int = 1) -> None:
         self.seq = seq
         self.options = options or TrackOptions()
         self.smooth = smooth
         self.terrain = TerrainMap(seq.config.plane) if terrain else None
         self._priors = dict(priors or {})
         self._skip_bad_frames = skip_bad_frames
+        self._threads = int(threads)
         self._stopped = stopped or (lambda index: f"frames 0..{index - 1} were done")
         self._rerun_replaces = rerun_replaces
         cfg = seq.config
@@ -295,10 +299,8 @@ class Tracking:
         if self._next == 0:
             self._last_image, self._last_index = first.image, first.index
             yield first.index, first.timestamp, first.image
-        for index in range(max(self._next, 1), len(frames)):
-            try:
-                frame = frames.read(index)
-            except InputError as exc:
+        for index, frame, exc in read_frames(frames, max(self._next, 1), self._threads):
+            if exc is not None:
                 if not self._skip_bad_frames:
                     rerun = _RERUN_REPLACING if self._rerun_replaces else _RERUN
                     raise InputError(f"{exc}; tracking stopped at frame {index} "
