@@ -31,8 +31,8 @@ values: the final error over the whole run and over each half (frames ``0..N/2``
 **What is overridden, and how.** Module attributes are set for the duration of a
 measurement and restored after it:
 
-* ``TILT_CHANGE_DEG``: ``monovo_cli.core.plane.belief``, ``monovo_cli.core.plane.tracker``
-  and ``monovo_cli.core.plane.motion_covariance`` (the latter two import it by name);
+* ``TILT_CHANGE_DEG``: ``monovo_cli.core.plane.belief`` and ``monovo_cli.core.plane.tracker``
+  (which imports it by name);
 * ``MIN_EXPLAINED``: ``monovo_cli.core.estimator.terrain_grid``.
 
 The others are fields of ``TrackOptions`` passed to ``monovo_cli.track_frames``:
@@ -99,7 +99,7 @@ CONSTANTS = (
              "docs/algorithm.md 4 (kitti_ramp 16.8 -> 2.2 %), docs/benchmarks.md \"The keyframe "
              "plane's tilt process noise\"",
              attrs=tuple(f"monovo_cli.core.plane.{m}.TILT_CHANGE_DEG"
-                         for m in ("belief", "tracker", "motion_covariance"))),
+                         for m in ("belief", "tracker"))),
     Constant("MIN_EXPLAINED", (0.03, 0.1, 0.3, 1.0),
              "docs/algorithm.md 9 (kitti_ramp 3.6 -> 2.2 %; desk_b under 0.1)",
              attrs=("monovo_cli.core.estimator.terrain_grid.MIN_EXPLAINED",)),
