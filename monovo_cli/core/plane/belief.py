@@ -19,10 +19,10 @@ of the informations, iterated on the sphere) of
     itself; the motion's error adds ``-n . v`` to the distance and ``n x w`` to the normal.
     Then a process noise of DISTANCE_CHANGE times the distance and TILT_CHANGE_DEG on each
     tilt: on ground that is not a plane the carried plane errs by more than the motion's
-    covariance knows, and the new keyframe's patch of ground is not the old one. Without
-    the tilt's, the carried normal's information only grows from keyframe to keyframe and
-    the images' normal of each new patch, biased on curved ground, walks it away unchecked
-    by the mounting prior;
+    covariance knows, and the new keyframe's patch of ground is not the old one. The tilt's
+    is none by default: the carried normal's information then only grows from keyframe to
+    keyframe, and the images' normal of each new patch, biased on curved ground, can walk it
+    away from the mounting prior (why none was chosen: the docs section above);
 (b) the plane measured from the images at that keyframe: the normal from the joint
     refinement of motion and normal (:mod:`monovo_cli.core.plane.fit`), with the information
     of its normal equations; no information on the distance (with d and the translation
@@ -50,7 +50,7 @@ from monovo_cli.geometry.plane import Plane, tangent_basis
 SIGMA_DISTANCE_FRACTION = 1.0 / 30.0  # default ground.sigma_distance: this x the distance
 SIGMA_DEG = 3.0  # default ground.sigma_deg
 DISTANCE_CHANGE = 0.02  # process noise of the carried distance per keyframe: this x the distance
-TILT_CHANGE_DEG = 0.5  # process noise of each carried tilt angle per keyframe (deg)
+TILT_CHANGE_DEG = 0.0  # process noise of each carried tilt angle per keyframe (deg)
 
 
 def to_chart(ref: Plane, plane: Plane) -> np.ndarray:

@@ -35,13 +35,13 @@ import numpy as np
 from monovo_cli.core.estimator.estimate import Estimate, KeyLevel
 from monovo_cli.core.plane.belief import (
     EXACT_STD,
-    TILT_CHANGE_DEG,
     PlaneBelief,
     to_chart,
 )
 from monovo_cli.geometry.lie import adjoint, output_covariance
 from monovo_cli.geometry.plane import Plane, tangent_basis
 
+TILT_MODEL_ERROR_DEG = 0.5  # each tilt's model error before a re-anchor has measured it (deg)
 TILT_PERSISTENCE = 2.0 / 3.0  # rho: correlation of consecutive keyframe planes' tilt errors
 CONSISTENCY_WINDOW = 100  # re-anchors remembered by PlaneCovarianceCalibration
 CHI2_1_MEDIAN = 0.455  # median of a chi-square variable with 1 degree of freedom
@@ -167,10 +167,10 @@ class PlaneCovarianceCalibration:
     def reported(self, covariance: np.ndarray) -> np.ndarray:
         """``covariance`` (3, 3), the keyframe plane's in its chart (m, rad), calibrated: the
         distance's row and column scaled, the tilt's model error added (before any re-anchor:
-        TILT_CHANGE_DEG on each tilt). A plane taken as exact (tilt std within 10 EXACT_STD)
+        TILT_MODEL_ERROR_DEG on each tilt). A plane taken as exact (tilt std within 10 EXACT_STD)
         comes back unchanged."""
         if self._calibration is None:  # (worked out once per re-anchor)
-            g, Q = 1.0, np.eye(2) * math.radians(TILT_CHANGE_DEG) ** 2
+            g, Q = 1.0, np.eye(2) * math.radians(TILT_MODEL_ERROR_DEG) ** 2
             if self._distance_nis:
                 g = math.sqrt(float(np.median(self._distance_nis)) / CHI2_1_MEDIAN)
             if self._tilt_excess:

@@ -550,8 +550,9 @@ def test_track_with_relief_sends_the_left_keyframe_again_lifted(rolling_drive):
 
 
 def test_track_with_relief_ends_no_further_off(rolling_drive):
-    """The 20-frame rolling drive (seed 3): the final position is 11.4 mm off with the
-    terrain grid, 17.6 mm with the plane alone."""
+    """The 20-frame rolling drive (seed 3): the final position is 3.2 mm off with the
+    terrain grid, 3.8 mm with the plane alone (2.5 and 4.4 mm with 0.5 deg of tilt process
+    noise, the default before issue 24.5)."""
     _, gt = read_tum(rolling_drive / "groundtruth.tum")
     with_relief, _ = run(rolling_drive, True)
     plain, _ = run(rolling_drive, False)
@@ -559,7 +560,7 @@ def test_track_with_relief_ends_no_further_off(rolling_drive):
     def err(res):
         return float(np.linalg.norm(res[-1].world_from_cam[:3, 3] - gt[-1][:3, 3]))
 
-    assert err(with_relief) < 0.85 * err(plain)
+    assert err(with_relief) < 0.9 * err(plain)
 
 
 def test_relief_rows_with_lens_distortion_match_finite_differences():

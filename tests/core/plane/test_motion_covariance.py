@@ -13,7 +13,6 @@ from monovo_cli.core.estimator.estimate import estimate_motion
 from monovo_cli.core.keyframe import build_keyframe
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane.belief import (
-    TILT_CHANGE_DEG,
     PlaneBelief,
     exact_covariance,
     mounting_prior,
@@ -21,6 +20,7 @@ from monovo_cli.core.plane.belief import (
     to_chart,
 )
 from monovo_cli.core.plane.motion_covariance import (
+    TILT_MODEL_ERROR_DEG,
     TILT_PERSISTENCE,
     MotionCovariance,
     PlaneCovarianceCalibration,
@@ -152,11 +152,11 @@ def test_plane_consistency_calibrates_distance_and_tilt_by_hand():
     rng = np.random.default_rng(5)
     pc = PlaneCovarianceCalibration()
     P = np.diag([0.03 ** 2, 1e-8, 1e-8])
-    # nothing seen yet: the distance as it is, the tilt with the filter's process noise; a
+    # nothing seen yet: the distance as it is, the tilt with its model error before any re-anchor; a
     # plane taken as exact as it is
     first = pc.reported(P)
     assert first[0, 0] == P[0, 0] and not first[0, 1:].any()
-    np.testing.assert_allclose(np.diag(first)[1:], 1e-8 + math.radians(TILT_CHANGE_DEG) ** 2)
+    np.testing.assert_allclose(np.diag(first)[1:], 1e-8 + math.radians(TILT_MODEL_ERROR_DEG) ** 2)
     exact = exact_covariance(Plane(N0, 1.5))
     np.testing.assert_array_equal(pc.reported(exact), exact)
     for _ in range(400):

@@ -237,8 +237,9 @@ def test_bobbing_drive_from_a_crest_ends_without_the_crests_scale():
                for s, d in drives.items()}
     rms = {s: float(np.sqrt(np.mean(h ** 2))) for s, h in heights.items()}
     rms0 = {s: float(np.sqrt(np.mean(h[:first["n"]] ** 2))) for s, h in heights.items()}
-    # (measured: keyframe 0 2.4 cm -> 0.97 cm, all points 1.08 -> 0.56 cm)
-    assert rms0[False] > 0.02 and rms0[True] < 0.5 * rms0[False]
+    # (measured: keyframe 0 2.4 cm -> 1.65 cm, all points 1.05 -> 0.71 cm; with 0.5 deg of
+    # tilt process noise, the default before issue 24.5, 2.4 -> 0.97 cm and 1.08 -> 0.56 cm)
+    assert rms0[False] > 0.02 and rms0[True] < 0.75 * rms0[False]
     assert rms[True] < 0.008 and rms[True] < 0.75 * rms[False]
     est = np.array([np.linalg.norm(r.prev_from_cur[:3, 3]) for r in res[1:]])
     true = np.array([np.linalg.norm((se3_inv(a) @ b)[:3, 3]) for a, b in zip(poses, poses[1:])])
