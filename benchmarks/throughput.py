@@ -240,6 +240,7 @@ class SizeParts:
     out_long: int
     out_short: int
     resume_check_s: float
+    others: float | None = None  # cores the machine's other processes used meanwhile (mean)
 
     def frame_s(self, cpu: bool = False) -> float:
         """Median over the pairs of the slope: one more frame, s."""
@@ -270,6 +271,7 @@ def measure_size(side: int, frames: int, tmp: Path, seed: int = 0, repeats: int 
     them in ``repeats`` interleaved pairs (after a first call that warms the caches), profile
     the long one, count bytes, time ``is_complete`` on the long one's outputs."""
     from benchmarks import profile
+    from benchmarks.batch_speedup import _machine_busy_cpu
     from monovo_cli.pipeline.batch_job import is_complete, track_one
     from monovo_cli.synth.write import synthesize
 
@@ -277,6 +279,7 @@ def measure_size(side: int, frames: int, tmp: Path, seed: int = 0, repeats: int 
     synthesize(long_seq, preset="drive", frames=frames, size=(side, side), noise_var=10.0, seed=seed)
     synthesize(short_seq, preset="drive", frames=2, size=(side, side), noise_var=10.0, seed=seed)
     track_one(short_seq, tmp / f"warm_{side}", overwrite=True)
+    busy0, w0, c0 = _machine_busy_cpu(), time.perf_counter(), time.process_time()
     longs, shorts = [], []
     for seq, out, into in ((short_seq, "pair", shorts), (long_seq, "drive", longs)) * repeats:
         w, c, res = _timed(track_one, seq, tmp / f"out_{out}_{side}", overwrite=True)
@@ -284,6 +287,8 @@ def measure_size(side: int, frames: int, tmp: Path, seed: int = 0, repeats: int 
             raise SystemExit(f"{seq}: {res['error']}")
         into.append((w, c))
     prof = profile.profile_drive(long_seq, tmp / f"prof_{side}")
+    busy1, w1, c1 = _machine_busy_cpu(), time.perf_counter(), time.process_time()
+    others = None if busy0 is None or busy1 is None else max(0.0, busy1 - busy0 - (c1 - c0)) / (w1 - w0)
     pngs = sorted((long_seq / "frames").glob("*.png"))
     t0 = time.perf_counter()
     complete, why = is_complete(long_seq, tmp / f"out_drive_{side}")
@@ -293,7 +298,7 @@ def measure_size(side: int, frames: int, tmp: Path, seed: int = 0, repeats: int 
     return SizeParts(side, frames, longs, shorts, prof,
                      statistics.mean(p.stat().st_size for p in pngs),
                      _folder_bytes(tmp / f"out_drive_{side}"), _folder_bytes(tmp / f"out_pair_{side}"),
-                     resume_check)
+                     resume_check, others)
 
 
 def _noop(x):
@@ -425,6 +430,8 @@ def parts_table(sizes: list[SizeParts]) -> str:
     row(f"`--resume`'s check of one finished {sizes[0].frames}-frame sequence "
         "(`is_complete`, in the submitting process), ms",
         [f"{1000 * s.resume_check_s:.1f}" for s in sizes])
+    row("cores the machine's other processes used meanwhile (mean over the timed runs)",
+        ["" if s.others is None else f"{s.others:.2f}" for s in sizes])
     return "\n".join(lines)
 
 
@@ -484,6 +491,11 @@ class CheckRow:
     free: float           # cores the other processes left us (at most ``workers``)
     pred_free: float      # parts in CPU time on ``free`` cores
 
+    @property
+    def quiet(self) -> bool:
+        """The other processes used less than 0.2 core on average meanwhile."""
+        return self.others is not None and self.others / self.wall < 0.2
+
 
 def check(parts_wall: Parts, parts_cpu: Parts, sequences: int, frames: int, side: int,
           repeats: int, tmp: Path) -> list[CheckRow]:
@@ -522,6 +534,14 @@ def check_table(rows: list[CheckRow]) -> str:
             f"{'' if c.others is None else f'{c.others:.1f}'} | {c.load:.1f} | {c.free:.2f} | "
             f"{c.pred_free:.2f} | {c.wall / c.pred_free:.2f} | {c.cpu:.2f} | {c.pred_cpu:.2f} | "
             f"**{c.cpu / c.pred_cpu:.2f}** |")
+    for w in (1, 2):
+        all_ = [c.wall / c.pred_wall for c in rows if c.workers == w]
+        quiet = [c.wall / c.pred_wall for c in rows if c.workers == w and c.quiet]
+        lines.append(f"\n{w} worker(s): measured / predicted (parts in wall time) median "
+                     f"{statistics.median(all_):.2f} over {len(all_)} run(s)"
+                     + (f"; {statistics.median(quiet):.2f} over the {len(quiet)} run(s) in which the "
+                        "other processes used less than 0.2 core" if quiet else
+                        "; no run had the machine to itself (others < 0.2 core)"))
     return "\n".join(lines)
 
 
@@ -632,7 +652,7 @@ def main() -> None:
     ap.add_argument("--check", type=int, nargs=3, default=[4, 60, 256],
                     metavar=("SEQUENCES", "FRAMES", "SIDE"),
                     help="benchmarks.batch_speedup's archive for the check")
-    ap.add_argument("--check-repeats", type=int, default=1)
+    ap.add_argument("--check-repeats", type=int, default=2)
     ap.add_argument("--no-check", action="store_true")
     ap.add_argument("--no-dask", action="store_true")
     ap.add_argument("--save", type=Path, help="write the measured parts (JSON) here")
