@@ -23,7 +23,17 @@
   on ``--tiny`` 2-frame sequences against one;
 * **Dask** (when ``dask.distributed`` is installed): the same two on a LocalCluster of one
   single-threaded worker already up (``--scheduler``), the cluster's start, and the
-  scheduler's time per task (no-op tasks through it).
+  scheduler's time per task (no-op tasks through it);
+* **a frame inside the workers**: one batch over the drives above per executor -- the local
+  pool; the pool with ``MALLOC_TRIM_THRESHOLD_=65536`` in its environment; ``--dask`` with
+  Dask's default configuration, whose nanny sets that variable for its workers; ``--dask``
+  with it unset (``distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_: null``) --
+  timed by the worker (its CPU time around ``track_one``). Setting the variable turns off
+  glibc's adaptive mmap threshold, so every large temporary array is mapped, faulted in and
+  unmapped again: frames cost 1.5-2x. A Dask nanny started in a process also writes the
+  variable into that process's environment, and every process it spawns later inherits it;
+  the script puts the environment back after each Dask run, so the local pool's figures and
+  the check are not slowed.
 
 **The model** (:func:`predict`). N frames of side S in sequences of L frames (n = ⌈N/L⌉
 sequences, each tracked by one worker from start to end) on M nodes of C cores (P = M·C
@@ -59,9 +69,13 @@ batch's CPU time (this process and its workers) with the sum of the parts.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import dataclasses
+import importlib.util
 import json
 import math
 import os
+import shutil
 import statistics
 import sys
 import tempfile
@@ -346,6 +360,7 @@ def measure_executor(name: str, one_root: Path, many_root: Path, k: int,
     else:
         from distributed import Client, LocalCluster
 
+        saved = dict(os.environ)  # the nanny writes its pre-spawn-environ into ours
         t0 = time.perf_counter()
         cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=40)
@@ -362,6 +377,7 @@ def measure_executor(name: str, one_root: Path, many_root: Path, k: int,
                 sched = (time.perf_counter() - t0) / n
         finally:
             cluster.close()
+            _restore_environ(saved)
     task = (many["wall"] - one["wall"]) / (k - 1) - seq[0]
     start = one["wall"] - seq[0] - max(0.0, task)  # a negative task: noise, counted as 0
     ex = ExecutorParts(name, one["wall"], many["wall"], k, start, task,
@@ -371,6 +387,109 @@ def measure_executor(name: str, one_root: Path, many_root: Path, k: int,
         ex.task_cpu = (many["cpu"] - one["cpu"]) / (k - 1) - seq[1]
         ex.start_cpu = one["cpu"] - seq[1] - max(0.0, ex.task_cpu)
     return ex
+
+
+def _restore_environ(saved: dict[str, str]) -> None:
+    """Put ``os.environ`` back as ``saved``: a Dask nanny started in this process writes its
+    ``distributed.nanny.pre-spawn-environ`` (``MALLOC_TRIM_THRESHOLD_``, ``PYTHONHASHSEED``)
+    into it, and every process spawned later -- a local pool's workers -- would inherit it."""
+    for k in set(os.environ) - set(saved):
+        del os.environ[k]
+    os.environ.update(saved)
+
+
+#: The executors :func:`worker_frame_costs` compares: (label, run_batch's keywords, variables
+#: set in this process's environment meanwhile, Dask configuration meanwhile).
+WORKER_SETUPS = (
+    ("local process pool", {"workers": 1}, {}, {}),
+    ("local process pool, MALLOC_TRIM_THRESHOLD_=65536 in its environment", {"workers": 1},
+     {"MALLOC_TRIM_THRESHOLD_": "65536"}, {}),
+    ("Dask LocalCluster (`--dask`), Dask's default configuration", {"workers": 1, "dask": True},
+     {}, {}),
+    ("Dask LocalCluster (`--dask`), `distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_` "
+     "unset", {"workers": 1, "dask": True}, {},
+     {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}),
+)
+
+
+@dataclass
+class WorkerFrames:
+    """ms per frame in one executor's worker, by side, from the long drive less the 2-frame
+    drive over (frames - 2): ``wall`` from ``summary.csv``'s ``seconds`` (the frame loop's
+    wall time), ``cpu`` the worker process's CPU time over the whole task."""
+
+    label: str
+    wall: dict[int, float]
+    cpu: dict[int, float]
+
+
+def cpu_timed_track_one(seq_dir, out_dir, options=None, *, overwrite=False, single_thread=True) -> dict:
+    """:func:`track_one` with the CPU time of the worker process over it (``cpu_s``): a task
+    for ``run_batch(task=...)``, importable by a Dask worker."""
+    from monovo_cli.pipeline.batch_job import track_one
+
+    c0 = time.process_time()
+    res = track_one(seq_dir, out_dir, options, overwrite=overwrite, single_thread=single_thread)
+    return {**res, "cpu_s": time.process_time() - c0}
+
+
+def _slope(results: dict[str, dict], key: str, i: int, sz: SizeParts) -> float:
+    """ms per frame between the ``i``-th size's 2-frame and long drive's ``key`` seconds."""
+    a, b = results[f"{i}_{sz.side}_a_pair"][key], results[f"{i}_{sz.side}_b_drive"][key]
+    return 1000 * (b - a) / (sz.frames - 2)
+
+
+def worker_frame_costs(sizes: list[SizeParts], tmp: Path, dask: bool = True) -> list[WorkerFrames]:
+    """The per-frame cost inside each of :data:`WORKER_SETUPS`' workers: one batch over the
+    drives :func:`measure_size` rendered (a 2-frame drive first, to warm the worker up; then
+    each size's 2-frame and long drive), on one worker. Dask setups only with ``dask``."""
+    from monovo_cli.pipeline.batch import run_batch
+
+    root = tmp / "worker_archive"
+    root.mkdir(exist_ok=True)
+    first = sizes[0].side
+    shutil.copytree(tmp / f"pair_{first}", root / "0_warm")  # (a link: found once, as its target)
+    for i, sz in enumerate(sizes, start=1):
+        (root / f"{i}_{sz.side}_a_pair").symlink_to(tmp / f"pair_{sz.side}", target_is_directory=True)
+        (root / f"{i}_{sz.side}_b_drive").symlink_to(tmp / f"drive_{sz.side}", target_is_directory=True)
+    out = []
+    for label, kw, env, config in WORKER_SETUPS:
+        if kw.get("dask") and not dask:
+            continue
+        saved = dict(os.environ)
+        os.environ.update(env)
+        try:
+            with contextlib.ExitStack() as stack:
+                if config:
+                    import dask as dask_config
+
+                    stack.enter_context(dask_config.config.set(config))
+                res = run_batch(root, tmp / "worker_out", overwrite=True, task=cpu_timed_track_one, **kw)
+        finally:
+            _restore_environ(saved)
+        bad = [r["sequence"] for r in res.results if r["status"] != "ok"]
+        if bad:
+            raise SystemExit(f"{label}: failed {bad}")
+        by = {r["sequence"]: r for r in res.results}
+
+        out.append(WorkerFrames(label, *({sz.side: _slope(by, key, i, sz) for i, sz in enumerate(sizes, 1)}
+                                         for key in ("seconds", "cpu_s"))))
+    return out
+
+
+def worker_table(rows: list[WorkerFrames], sizes: list[SizeParts]) -> str:
+    """Markdown: ms per frame in each executor's worker, wall (CPU in brackets), and the ratio
+    of the CPU figure to the local pool's."""
+    base = rows[0].cpu
+    head = " | ".join(f"{s.side}² ms/frame | × local (CPU)" for s in sizes)
+    lines = [f"| executor (one worker) | {head} |", "|" + " --- |" * (1 + 2 * len(sizes))]
+    for r in rows:
+        lines.append(f"| {r.label} | " + " | ".join(
+            f"{r.wall[s.side]:.1f} ({r.cpu[s.side]:.1f}) | {r.cpu[s.side] / base[s.side]:.2f}"
+            for s in sizes) + " |")
+    lines.append("\n(in this process, `track_one`'s slope: " + ", ".join(
+        f"{s.side}² {1000 * s.frame_s():.1f} ({1000 * s.frame_s(True):.1f}) ms" for s in sizes) + ")")
+    return "\n".join(lines)
 
 
 def parts_from(sizes: list[SizeParts], local: ExecutorParts, dask: ExecutorParts | None = None,
@@ -575,24 +694,33 @@ def measure(args, tmp: Path) -> dict[str, Parts]:
              for i in range(args.tiny)]
     seq = (statistics.mean(a[0] for a in alone), statistics.mean(a[1] for a in alone))
     local = measure_executor("local", one_root, many_root, args.tiny, seq, tmp)
-    execs, dask = [local], None
-    try:
-        import dask.distributed  # noqa: F401
-    except ImportError:
+    execs, dask_ex = [local], None
+    have_dask = importlib.util.find_spec("distributed") is not None
+    if not have_dask:
         print("Dask is not installed: its costs are not measured; the cluster figures use the "
               "local pool's.\n")
-    else:
-        if not args.no_dask:
-            dask = measure_executor("dask", one_root, many_root, args.tiny, seq, tmp)
-            execs.append(dask)
+    elif not args.no_dask:
+        dask_ex = measure_executor("dask", one_root, many_root, args.tiny, seq, tmp)
+        execs.append(dask_ex)
+    workers = worker_frame_costs(sizes, tmp, dask=have_dask and not args.no_dask)
     print(f"### Measured parts ({args.frames}-frame and 2-frame drives per size, one core; "
           "wall clock, CPU time of this process in brackets)\n")
     print(parts_table(sizes))
     print("\n### The executors' costs (2-frame 256² sequences, one worker)\n")
     print(executor_table(execs, seq))
+    print("\n### A frame's cost inside the workers (one batch per executor over the drives above, "
+          "one worker; `summary.csv`'s tracking seconds, the worker's CPU time in brackets)\n")
+    print(worker_table(workers, sizes))
     print()
-    return {"wall": parts_from(sizes, local, cpu=False), "cpu": parts_from(sizes, local, cpu=True),
-            "cluster": parts_from(sizes, local, dask, cpu=True)}
+    parts = {"wall": parts_from(sizes, local, cpu=False), "cpu": parts_from(sizes, local, cpu=True),
+             "cluster": parts_from(sizes, local, dask_ex, cpu=True)}
+    dask_default = [w for w in workers if "default configuration" in w.label]
+    if dask_default:  # the same cluster with Dask's per-frame slowdown, as measured here
+        factor = {s: dask_default[0].cpu[s] / workers[0].cpu[s] for s in workers[0].cpu}
+        cl = parts["cluster"]
+        parts["cluster_dask_defaults"] = dataclasses.replace(
+            cl, frame_s={s: cl.frame_s[s] * factor[s] for s in cl.frame_s})
+    return parts
 
 
 def report(args, parts: dict[str, Parts], storage: Storage) -> None:
@@ -623,7 +751,16 @@ def report(args, parts: dict[str, Parts], storage: Storage) -> None:
           f"compute {duration(p.compute)}, per-sequence overheads {duration(p.overhead)}, waits "
           f"for files {duration(p.fetch)}, read {duration(p.read)}, scheduler {duration(p.sched)}, "
           f"start {duration(p.start)}; {args.archive * cl.frame_s[side] / 3600:.0f} CPU hours "
-          "of tracking in all\n")
+          "of tracking in all (workers at the local pool's speed per frame: on Dask, with "
+          "its nanny's MALLOC_TRIM_THRESHOLD_ unset)\n")
+    if "cluster_dask_defaults" in parts:
+        d = parts["cluster_dask_defaults"]
+        q = predict(d, frames=args.archive, side=side, seq_len=args.seq_len, nodes=args.nodes,
+                    cores=args.cores, storage=storage)
+        print(f"With Dask's default configuration (its nanny sets MALLOC_TRIM_THRESHOLD_=65536; "
+              f"a frame costs {d.frame_s[side] / cl.frame_s[side]:.2f}x as measured above): "
+              f"**{duration(q.wall)}**, bound by {q.bound} (one round of {q.seq_time:.0f} s; "
+              f"{args.archive * d.frame_s[side] / 3600:.0f} CPU hours)\n")
     nodes = [1, 10, 100, 1000]
     for length in (args.seq_len, max(1, args.seq_len // 10)):
         print(f"#### Where the bottleneck moves: by nodes ({args.cores} cores each, sequences of "
@@ -680,7 +817,7 @@ def main() -> None:
         tmp = Path(tmp_name)
         if args.parts:
             saved = json.loads(args.parts.read_text())
-            parts = {k: Parts.from_json(saved[k]) for k in ("wall", "cpu", "cluster")}
+            parts = {k: Parts.from_json(v) for k, v in saved.items() if k != "measured"}
             print(f"parts from {args.parts} (measured on {saved.get('measured', '?')})\n")
         else:
             parts = measure(args, tmp)
