@@ -542,7 +542,8 @@ def parts_table(sizes: list[SizeParts]) -> str:
         [f"{s.median('longs'):.2f} ({s.median('longs', True):.2f})" for s in sizes])
     row("**b_in**: PNG bytes per frame (8-bit grey, noise variance 10)",
         [f"**{s.png_bytes / 1e3:.0f} kB**" for s in sizes])
-    row("b_out: bytes written per frame (motion.csv, trajectory.csv/.tum rows)",
+    row("b_out: bytes written per frame (motion.csv, trajectory.csv/.tum rows; report.html, "
+        "whose keyframe thumbnails stop at 16, adds to it over short drives)",
         [f"{s.out_frame_bytes:.0f} B" for s in sizes])
     row("b_seq: bytes written per sequence (trajectory.png, report.html, run.yaml, done.json)",
         [f"{s.out_seq_bytes / 1e3:.0f} kB" for s in sizes])
