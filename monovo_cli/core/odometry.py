@@ -244,15 +244,29 @@ class Odometry:
     def _capture(self, index: int, key: Keyframe, image: np.ndarray, pyr: list[np.ndarray],
                  guess: np.ndarray, est: Estimate | None, reason: str) -> tuple[Estimate, str]:
         """The capture range beyond the prediction: the rotation search around ``guess`` and
-        the feature hypothesis each start the estimator from the top level; the estimate
-        that passes the checks with the most inliers is kept (``est``, failing with
-        ``reason``, competes too)."""
-        starts = [self._search(key, pyr, guess)]
+        the feature hypothesis each start the estimator from the top level, and while no
+        estimate passes the checks, the finer feature hypothesis
+        (``TrackOptions.fine_features``), then the same matched in the reference's view
+        warped by the prediction (:mod:`monovo_cli.core.recovery.predicted_view`); the
+        estimate that passes the checks with the most inliers is kept (``est``, failing
+        with ``reason``, competes too)."""
+        starts = [lambda: self._search(key, pyr, guess)]
         if self.options.feature_hypothesis:
-            hyp = self._recovery.hypothesis(index, image, key.plane)
-            starts += [] if hyp is None else [hyp]
-        for start in starts:
-            cand = estimate_motion(key.levels, pyr, start, options=self.options.estimator,
+            starts += [partial(self._recovery.hypothesis, index, image, key.plane)]
+            fine = self.options.fine_features
+            if fine is not None:  # only while nothing before passed
+                predicted = orthonormalize(self._velocity @ self._cur_from_key_prev)
+                starts += [partial(self._recovery.hypothesis, index, image, key.plane,
+                                   options=fine),
+                           partial(self._recovery.hypothesis, index, image, key.plane,
+                                   options=fine, predicted=predicted)]
+        for i, start in enumerate(starts):
+            if i >= 2 and not reason:
+                break
+            begin = start()
+            if begin is None:
+                continue
+            cand = estimate_motion(key.levels, pyr, begin, options=self.options.estimator,
                                    gain=self._gain, bias=self._bias)
             why = self._failure(cand, key)
             if est is None or (not why, self._score(cand)) > (not reason, self._score(est)):

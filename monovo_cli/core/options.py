@@ -86,6 +86,12 @@ def _tracking_features() -> FeatureOptions:
     return FeatureOptions(level=None, features=1000)
 
 
+def _fine_features() -> FeatureOptions:
+    """The tracker's second feature settings, when the first give no start that passes: the
+    coarsest level whose shorter side keeps 512 px, at most 3000 features per image."""
+    return FeatureOptions(level=None, detect_side=512, features=3000)
+
+
 @dataclass(frozen=True)
 class TrackOptions:
     """Tracking settings.
@@ -110,9 +116,12 @@ class TrackOptions:
     (:mod:`monovo_cli.core.recovery.lost_frames`); by default they detect on the coarsest pyramid
     level whose shorter side keeps ``detect_side`` px, with fewer features than
     :class:`FeatureOptions`' own defaults, so that their cost does not grow with the frame
-    size. After ``reinit_after`` lost frames in a row a fresh keyframe is anchored on the
-    current frame with the mounting plane (status ``reinit``), its pose bridged by the
-    prediction.
+    size. While no start passes the checks, ``fine_features`` (None: none) give two more
+    hypotheses from more features on a finer level, the second matched in the reference's
+    view warped by the prediction: a texture of look-alike grains (gravel), which the coarse
+    level blurs and a few steps' perspective distorts, still matches there. After
+    ``reinit_after`` lost frames in a row a fresh keyframe is anchored on the current frame
+    (status ``reinit``), its pose bridged by the prediction.
     A frame is lost when fewer than ``min_inliers`` of its points agree within the noise,
     its msd exceeds ``msd_factor`` times the recent median, the normal matrix's condition
     number exceeds ``max_condition``, the finest level hits the iteration cap, or its motion
@@ -146,6 +155,7 @@ class TrackOptions:
     keep_initial_tilt: bool = False
     estimator: EstimatorOptions = field(default_factory=EstimatorOptions)
     features: FeatureOptions = field(default_factory=_tracking_features)
+    fine_features: FeatureOptions | None = field(default_factory=_fine_features)
 
 
 def options_from_dict(cls: type[T], data: Mapping[str, Any]) -> T:

@@ -28,6 +28,7 @@ import numpy as np
 
 from monovo_cli.core.options import FeatureOptions
 from monovo_cli.core.recovery.features import FeatureMotion, feature_motion
+from monovo_cli.core.recovery.predicted_view import predicted_view_motion
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import orthonormalize, se3_inv
 from monovo_cli.geometry.plane import Plane
@@ -84,16 +85,24 @@ class ChainedHypothesis:
 
 def chained_hypothesis(ref: TrustedFrame, image: np.ndarray, camera: PinholeCamera, key_plane: Plane, *,
            options: FeatureOptions, mask: np.ndarray | None = None,
-           region: tuple[int, int, int, int] | None = None) -> ChainedHypothesis | None:
+           region: tuple[int, int, int, int] | None = None,
+           predicted: np.ndarray | None = None) -> ChainedHypothesis | None:
     """The feature hypothesis of ``image`` (H, W) against ``ref``, chained to the keyframe.
 
     ``key_plane`` is the ground in the keyframe camera; ``options``, ``mask`` and ``region``
-    as for :func:`~monovo_cli.core.recovery.features.feature_motion`. None when the features
-    give no hypothesis.
+    as for :func:`~monovo_cli.core.recovery.features.feature_motion`; ``predicted`` (4x4) a
+    predicted ``cur_from_key``: the features are then matched in the reference's view
+    (:mod:`monovo_cli.core.recovery.predicted_view`). None when the features give no
+    hypothesis.
     """
     ref_plane = key_plane.in_frame(ref.from_key)
-    motion = feature_motion(ref.image, image, camera, ref_plane, mask=mask, region=region,
-                            options=options)
+    if predicted is None:
+        motion = feature_motion(ref.image, image, camera, ref_plane, mask=mask, region=region,
+                                options=options)
+    else:
+        motion = predicted_view_motion(ref.image, image, camera, ref_plane,
+                                       predicted @ se3_inv(ref.from_key), mask=mask,
+                                       region=region, options=options)
     if motion is None:
         return None
     return ChainedHypothesis(image, motion.cur_from_key @ ref.from_key, motion, ref_plane,
@@ -120,13 +129,19 @@ class LostFrameRecovery:
         """A keyframe was anchored on ``image``: it is the reference from now on."""
         self.reference = TrustedFrame(image, np.eye(4))
 
-    def hypothesis(self, index: int, image: np.ndarray, key_plane: Plane) -> np.ndarray | None:
+    def hypothesis(self, index: int, image: np.ndarray, key_plane: Plane, *,
+                   options: FeatureOptions | None = None,
+                   predicted: np.ndarray | None = None) -> np.ndarray | None:
         """``cur_from_key`` (4x4) of frame ``index`` (``image`` (H, W)) by the features
-        against the reference, ``key_plane`` the keyframe's plane; None without one."""
+        against the reference, ``key_plane`` the keyframe's plane; None without one.
+        ``options`` other feature settings than the tracker's (a finer second try),
+        ``predicted`` the predicted ``cur_from_key`` to match in the reference's view by
+        (:func:`chained_hypothesis`); the frame's hypothesis is the last one found."""
         b = None if self.reference is None else chained_hypothesis(
-            self.reference, image, self.camera, key_plane, options=self.options, mask=self.mask,
-            region=self.region)
-        self.current = None if b is None else (index, b)
+            self.reference, image, self.camera, key_plane, options=options or self.options,
+            mask=self.mask, region=self.region, predicted=predicted)
+        if b is not None or self.current is None or self.current[0] != index:
+            self.current = None if b is None else (index, b)  # (a failed second try keeps the first)
         return None if b is None else b.cur_from_key
 
     def lost_pose(self, index: int, prediction: np.ndarray) -> np.ndarray:
