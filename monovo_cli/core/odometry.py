@@ -42,7 +42,13 @@ from monovo_cli.core.estimator.terrain_grid import (
 )
 from monovo_cli.core.keyframe import Keyframe, build_keyframe, footprint
 from monovo_cli.core.options import TrackOptions
-from monovo_cli.core.plane.belief import PlaneLink
+from monovo_cli.core.plane.belief import (
+    DISTANCE_CHANGE,
+    TILT_CHANGE_DEG,
+    PlaneLink,
+    keyframe_plane,
+    propagated_plane,
+)
 from monovo_cli.core.plane.motion_covariance import MotionCovariance
 from monovo_cli.core.plane.tracker import InitialTilt, Mounting, PlaneTracker
 from monovo_cli.core.recovery.lost_frames import LostFrameRecovery
@@ -476,6 +482,26 @@ class Odometry:
         self._recovery.anchored(image)
         return True
 
+    def _carried_plane(self, cur_from_key: np.ndarray) -> tuple[Plane, np.ndarray | None]:
+        """The ground of a fresh keyframe at the predicted pose ``cur_from_key`` (4x4) and its
+        chart covariance: the MAP of the keyframe's plane carried there, with the variance
+        the lost frames' predictions left (``_gap_variance``, taken on every axis), and the
+        mounting prior. After a few lost frames the prediction's tilt is worth less than
+        the mounting's, and a fresh keyframe on a plane tilted by the prediction's error
+        fits nothing. The carried plane alone (covariance None) where they cannot be fused."""
+        gap = self._gap_variance
+        twist = np.diag(np.r_[np.full(3, gap[:3].max()), np.full(3, gap[3:].max())])
+        d = self._key.plane.distance
+        try:
+            carried = propagated_plane(self._key.plane, self._plane.covariance, cur_from_key,
+                                       twist)
+            fused = keyframe_plane(carried, prior=self._plane.mounting,
+                                   distance_change=DISTANCE_CHANGE * d,
+                                   tilt_change=np.radians(TILT_CHANGE_DEG))
+            return fused.plane, fused.covariance
+        except (ValueError, np.linalg.LinAlgError):
+            return self._key.plane.in_frame(cur_from_key), None
+
     @staticmethod
     def _looks_usable(image: np.ndarray) -> bool:
         """Whether a frame may carry a fresh keyframe: its noise well below its contrast (a
@@ -487,15 +513,16 @@ class Odometry:
                 reason: str) -> FrameResult:
         """Frames stay lost: anchor a fresh keyframe on this one at the predicted pose.
 
-        The plane is the current keyframe's carried to the prediction, or the mount's plane
-        (relative to the camera) when that one does not meet the region's rays
-        in front of the camera; the gap since the last good frame is bridged by the
-        prediction. A frame that cannot carry a keyframe stays lost."""
+        The plane is the current keyframe's carried to the prediction fused with the mounting
+        prior (:meth:`_carried_plane`), or the mount's plane (relative to the camera) when
+        that one does not meet the region's rays in front of the camera; the gap since the
+        last good frame is bridged by the prediction. A frame that cannot carry a keyframe
+        stays lost."""
         lost_for = self._lost_run
         res = self._lost(index, timestamp, reason)
-        cur_from_key = self._cur_from_key_prev
-        for plane in (self._key.plane.in_frame(cur_from_key), self._plane.mount_plane):
-            if self._reanchor(index, image, pyr, res.world_from_cam, plane):
+        for plane, cov in (self._carried_plane(self._cur_from_key_prev),
+                           (self._plane.mount_plane, None)):
+            if self._reanchor(index, image, pyr, res.world_from_cam, plane, cov):
                 self._lost_run = 0
                 self._gap_variance = np.zeros(6)  # the next motions are from this keyframe
                 self._recent_msd.clear()  # a fresh start: no msd history yet

@@ -121,7 +121,8 @@ class TrackOptions:
     view warped by the prediction: a texture of look-alike grains (gravel), which the coarse
     level blurs and a few steps' perspective distorts, still matches there. After
     ``reinit_after`` lost frames in a row a fresh keyframe is anchored on the current frame
-    (status ``reinit``), its pose bridged by the prediction.
+    (status ``reinit``), its pose bridged by the prediction, its plane the keyframe's carried
+    there fused with the mounting prior.
     A frame is lost when fewer than ``min_inliers`` of its points agree within the noise,
     its msd exceeds ``msd_factor`` times the recent median, the normal matrix's condition
     number exceeds ``max_condition``, the finest level hits the iteration cap, or its motion
