@@ -51,11 +51,12 @@ from monovo_cli.core.plane.belief import (
 )
 from monovo_cli.core.plane.motion_covariance import MotionCovariance
 from monovo_cli.core.plane.tracker import InitialTilt, Mounting, PlaneTracker
+from monovo_cli.core.recovery.gap import GapClosure
 from monovo_cli.core.recovery.lost_frames import LostFrameRecovery
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
-from monovo_cli.geometry.lie import orthonormalize, se3_inv, so3_log
+from monovo_cli.geometry.lie import orthonormalize, se3_exp, se3_inv, se3_log, so3_log
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.image.gradients import difference_sigma, estimate_noise_sigma
 from monovo_cli.image.pyramid import build_pyramid
@@ -84,6 +85,19 @@ class FrameResult:
     gain: float = 1.0
     bias: float = 0.0
     reason: str = ""
+    gap: GapClosure | None = None  # the lost frames before this one, measured directly
+
+
+@dataclass(frozen=True)
+class GoodFrame:
+    """The last frame whose pose the tracker trusts (accepted, or a re-initialisation): its
+    ``index``, ``image`` (H, W), ``world_from_cur`` T_0_k and ``cur_from_key`` (4x4, from the
+    keyframe it was estimated against). A gap after it is re-solved from it."""
+
+    index: int
+    image: np.ndarray
+    world_from_cur: np.ndarray
+    cur_from_key: np.ndarray
 
 
 PREDICTION_WINDOW = 30  # accepted frames whose motion changes measure the prediction's error
@@ -153,6 +167,8 @@ class Odometry:
         self._last_std, self._last_accepted = np.zeros(6), -2
         # the variance the lost frames since the last accepted one left in the previous pose
         self._gap_variance = np.zeros(6)
+        self._gap_steps: list[np.ndarray] = []  # their predicted motions' variances (6,)
+        self._good: GoodFrame | None = None
         self._started = False
         self._announced: Keyframe | None = None  # the keyframe :meth:`advance` last reported
 
@@ -178,6 +194,7 @@ class Odometry:
                                        np.eye(4), self.options, mask=self.mask)
         self._prev_image = self._key_image = image
         self._recovery.anchored(image)
+        self._good = GoodFrame(index, image, np.eye(4), se3_inv(self._key.world_from_key))
         n = len(self._key.levels[0].points)
         return FrameResult(index, timestamp, np.eye(4), np.eye(4), 0.0, 0, n, FrameStatus.OK,
                            np.zeros(6), np.zeros((6, 6)), keyframe=self._key.index)
@@ -248,24 +265,33 @@ class Odometry:
         return self._accept(index, timestamp, image, pyr, est)
 
     def _capture(self, index: int, key: Keyframe, image: np.ndarray, pyr: list[np.ndarray],
-                 guess: np.ndarray, est: Estimate | None, reason: str) -> tuple[Estimate, str]:
+                 guess: np.ndarray, est: Estimate | None, reason: str, *,
+                 predicted: np.ndarray | None = None,
+                 recovery: LostFrameRecovery | None = None,
+                 brightness: tuple[float, float] | None = None) -> tuple[Estimate, str]:
         """The capture range beyond the prediction: the rotation search around ``guess`` and
         the feature hypothesis each start the estimator from the top level, and while no
         estimate passes the checks, the finer feature hypothesis
         (``TrackOptions.fine_features``), then the same matched in the reference's view
         warped by the prediction (:mod:`monovo_cli.core.recovery.predicted_view`); the
         estimate that passes the checks with the most inliers is kept (``est``, failing
-        with ``reason``, competes too)."""
-        starts = [lambda: self._search(key, pyr, guess)]
+        with ``reason``, competes too).
+
+        ``predicted`` the predicted ``cur_from_key`` (None: the constant velocity's),
+        ``recovery`` whose reference the features are matched against (None: the tracker's),
+        ``brightness`` the starting gain and bias (None: the last accepted frame's)."""
+        gain, bias = (self._gain, self._bias) if brightness is None else brightness
+        recovery = recovery or self._recovery
+        if predicted is None:
+            predicted = orthonormalize(self._velocity @ self._cur_from_key_prev)
+        starts = [lambda: self._search(key, pyr, guess, gain, bias)]
         if self.options.feature_hypothesis:
-            starts += [partial(self._recovery.hypothesis, index, image, key.plane)]
+            starts += [partial(recovery.hypothesis, index, image, key.plane)]
             fine = self.options.fine_features
             if fine is not None:  # only while nothing before passed
-                predicted = orthonormalize(self._velocity @ self._cur_from_key_prev)
-                starts += [partial(self._recovery.hypothesis, index, image, key.plane,
-                                   options=fine),
-                           partial(self._recovery.hypothesis, index, image, key.plane,
-                                   options=fine, predicted=predicted)]
+                starts += [partial(recovery.hypothesis, index, image, key.plane, options=fine),
+                           partial(recovery.hypothesis, index, image, key.plane, options=fine,
+                                   predicted=predicted)]
         for i, start in enumerate(starts):
             if i >= 2 and not reason:
                 break
@@ -273,7 +299,7 @@ class Odometry:
             if begin is None:
                 continue
             cand = estimate_motion(key.levels, pyr, begin, options=self.options.estimator,
-                                   gain=self._gain, bias=self._bias)
+                                   gain=gain, bias=bias)
             why = self._failure(cand, key)
             if est is None or (not why, self._score(cand)) > (not reason, self._score(est)):
                 est, reason = cand, why
@@ -286,6 +312,12 @@ class Odometry:
     # -- outcomes ---------------------------------------------------------------------
     def _accept(self, index: int, timestamp: float, image: np.ndarray, pyr: list[np.ndarray],
                 est: Estimate) -> FrameResult:
+        closing = None  # the lost frames before this one: what the prediction would say here
+        if self._lost_run and self._good is not None:
+            predicted = orthonormalize(self._velocity @ self._cur_from_key_prev)
+            last = self._prediction_std(np.zeros(6), self._lost_run + 1)
+            closing = (orthonormalize(self._key.world_from_key @ se3_inv(predicted)),
+                       np.array(self._gap_steps + [last ** 2]))
         if self._plane.wants_test(self._key, index):
             est = self._settle_plane(index, pyr, est)
         key = self._key
@@ -332,7 +364,9 @@ class Odometry:
         self._cur_from_key_prev = cur_from_key
         self._gain, self._bias = gain, bias
         self._recent_msd.append(est.msd)
-        self._lost_run = 0
+        self._lost_run, self._gap_steps = 0, []
+        gap = None if closing is None else GapClosure(self._good.index, *closing)
+        self._good = GoodFrame(index, image, world_from_cur, cur_from_key)
         if self._key_msd is None:
             self._key_msd = _robust_msd(est)
         if reanchor and self._reanchor(index, image, pyr, world_from_cur, plane_cur, plane_cov,
@@ -342,7 +376,7 @@ class Odometry:
             self._state = OdometryState.TRACKING
         return FrameResult(index, timestamp, world_from_cur, prev_from_cur, est.msd,
                            est.iterations, est.points, status, std, cov, self._key.index,
-                           est.gain, est.bias)
+                           est.gain, est.bias, gap=gap)
 
     def _lost(self, index: int, timestamp: float, reason: str,
               est: Estimate | None = None) -> FrameResult:
@@ -358,6 +392,7 @@ class Odometry:
         self._lost_run += 1
         std = self._prediction_std(_motion_change(cur_from_key, predicted))
         self._gap_variance = self._gap_variance + std ** 2
+        self._gap_steps.append(std ** 2)
         msd = est.msd if est is not None and np.isfinite(est.msd) else 0.0
         its = est.iterations if est is not None else 0
         pts = est.points if est is not None else 0
@@ -365,7 +400,7 @@ class Odometry:
                            FrameStatus.LOST, std, np.diag(std ** 2), self._key.index,
                            self._gain, self._bias, reason)
 
-    def _prediction_std(self, bridged: np.ndarray) -> np.ndarray:
+    def _prediction_std(self, bridged: np.ndarray, lost_run: int | None = None) -> np.ndarray:
         """(6,) m and rad: the std of a lost frame's motion, the prediction's uncertainty.
 
         The prediction repeats the last accepted motion, so its error is the change of the
@@ -374,7 +409,8 @@ class Odometry:
         lost in a row, added to the last accepted motion's own std. Without such a history
         (the first frames) the motion itself, or at a standing start a fraction of the
         ground's distance and STANDING_DEG, stands for it. ``bridged`` (6,): how far the pose
-        taken (the feature hypothesis') is from the prediction, added as a further error.
+        taken (the feature hypothesis') is from the prediction, added as a further error;
+        ``lost_run`` the frames lost in a row, this one included (None: as counted).
         """
         if len(self._motion_changes) >= 3:
             changes = np.array(self._motion_changes)
@@ -384,13 +420,14 @@ class Odometry:
         else:
             d = self._key.plane.distance
             step = np.r_[np.full(3, STANDING_SHARE * d), np.full(3, np.radians(STANDING_DEG))]
-        spread = step * np.sqrt(self._lost_run)
+        spread = step * np.sqrt(self._lost_run if lost_run is None else lost_run)
         return np.sqrt(spread ** 2 + self._last_std ** 2 + bridged ** 2)
 
     # -- checks -----------------------------------------------------------------------
-    def _search(self, key: Keyframe, pyr: list[np.ndarray], guess: np.ndarray) -> np.ndarray:
+    def _search(self, key: Keyframe, pyr: list[np.ndarray], guess: np.ndarray,
+                gain: float, bias: float) -> np.ndarray:
         return coarse_search(key.levels[-1], pyr[-1], guess, options=self.options.estimator,
-                             noise_sigma=self._sigma, gain=self._gain, bias=self._bias)
+                             noise_sigma=self._sigma, gain=gain, bias=bias)
 
     def _score(self, est: Estimate) -> float:
         """Share of the in-view points that agree with the estimate within the noise."""
@@ -482,25 +519,65 @@ class Odometry:
         self._recovery.anchored(image)
         return True
 
-    def _carried_plane(self, cur_from_key: np.ndarray) -> tuple[Plane, np.ndarray | None]:
-        """The ground of a fresh keyframe at the predicted pose ``cur_from_key`` (4x4) and its
-        chart covariance: the MAP of the keyframe's plane carried there, with the variance
-        the lost frames' predictions left (``_gap_variance``, taken on every axis), and the
-        mounting prior. After a few lost frames the prediction's tilt is worth less than
-        the mounting's, and a fresh keyframe on a plane tilted by the prediction's error
-        fits nothing. The carried plane alone (covariance None) where they cannot be fused."""
-        gap = self._gap_variance
-        twist = np.diag(np.r_[np.full(3, gap[:3].max()), np.full(3, gap[3:].max())])
-        d = self._key.plane.distance
+    def _carried_plane(self, key: Keyframe, cur_from_key: np.ndarray,
+                       twist: np.ndarray | None = None) -> tuple[Plane, np.ndarray | None]:
+        """The ground of a fresh keyframe at ``cur_from_key`` (4x4, from ``key``) and its chart
+        covariance: the MAP of ``key``'s plane carried there and the mounting prior.
+        ``twist`` (6, 6) the covariance of the pose (None: a predicted one, the variance the
+        lost frames' predictions left, ``_gap_variance``, taken on every axis). After a few
+        lost frames the prediction's tilt is worth less than the mounting's, and a fresh
+        keyframe on a plane tilted by the prediction's error fits nothing. The carried plane
+        alone (covariance None) where they cannot be fused."""
+        if twist is None:
+            gap = self._gap_variance
+            twist = np.diag(np.r_[np.full(3, gap[:3].max()), np.full(3, gap[3:].max())])
+        d = key.plane.distance
         try:
-            carried = propagated_plane(self._key.plane, self._plane.covariance, cur_from_key,
-                                       twist)
+            carried = propagated_plane(key.plane, self._plane.covariance, cur_from_key, twist)
             fused = keyframe_plane(carried, prior=self._plane.mounting,
                                    distance_change=DISTANCE_CHANGE * d,
                                    tilt_change=np.radians(TILT_CHANGE_DEG))
             return fused.plane, fused.covariance
         except (ValueError, np.linalg.LinAlgError):
-            return self._key.plane.in_frame(cur_from_key), None
+            return key.plane.in_frame(cur_from_key), None
+
+    def _resolve_gap(self, index: int, image: np.ndarray, pyr: list[np.ndarray]
+                     ) -> tuple[Keyframe, Estimate] | None:
+        """Frame ``index`` (``image``, ``pyr``) measured directly from the last good frame
+        before the lost ones: against the keyframe if that frame is the keyframe, else
+        against a keyframe built on it (closer than the old one), starting from the
+        prediction, then with the capture's starts, its features matched against the last
+        good frame's image. ``(the keyframe, the estimate)`` if one passes the checks, else
+        None. Called before the frame is recorded lost (the prediction is still the next)."""
+        good, key = self._good, self._key
+        if good is None or not self.options.resolve_gaps:
+            return None
+        predicted = orthonormalize(self._velocity @ self._cur_from_key_prev)
+        ref, gain, bias = key, self._gain, self._bias
+        if good.index != key.index:
+            try:
+                ref = build_keyframe(good.index, good.image, self.camera,
+                                     key.plane.in_frame(good.cur_from_key), self.region,
+                                     good.world_from_cur, self.options, mask=self.mask)
+            except TrackingError:
+                return None
+            predicted = orthonormalize(predicted @ se3_inv(good.cur_from_key))
+            gain, bias = 1.0, 0.0
+        recovery = LostFrameRecovery(self.camera, options=self.options.features, mask=self.mask,
+                                     region=self.region)
+        recovery.anchored(good.image)
+        chance, self._chance_msd = self._chance_msd, float(np.var(ref.levels[0].points.intensity))
+        try:
+            est = estimate_motion(ref.levels, pyr, predicted, options=self.options.estimator,
+                                  gain=gain, bias=bias)
+            reason = self._failure(est, ref)
+            if reason:
+                est, reason = self._capture(index, ref, image, pyr, predicted, est, reason,
+                                            predicted=predicted, recovery=recovery,
+                                            brightness=(gain, bias))
+        finally:
+            self._chance_msd = chance
+        return None if reason else (ref, est)
 
     @staticmethod
     def _looks_usable(image: np.ndarray) -> bool:
@@ -518,16 +595,51 @@ class Odometry:
         that one does not meet the region's rays in front of the camera; the gap since the
         last good frame is bridged by the prediction. A frame that cannot carry a keyframe
         stays lost."""
-        lost_for = self._lost_run
+        lost_for, good = self._lost_run, self._good
+        gap_before, world_from_prev = self._gap_variance.copy(), self._world_from_prev
+        resolved = self._resolve_gap(index, image, pyr)
         res = self._lost(index, timestamp, reason)
-        for plane, cov in (self._carried_plane(self._cur_from_key_prev),
-                           (self._plane.mount_plane, None)):
-            if self._reanchor(index, image, pyr, res.world_from_cam, plane, cov):
-                self._lost_run = 0
+        variances = np.array(self._gap_steps)  # (this frame's predicted motion is the last)
+        world_from_cur, planes = res.world_from_cam, [self._carried_plane(self._key,
+                                                                          self._cur_from_key_prev)]
+        if resolved is not None:
+            ref, est = resolved
+            cur_from_ref = orthonormalize(est.cur_from_key)
+            world_from_cur = orthonormalize(ref.world_from_key @ se3_inv(cur_from_ref))
+            planes = [self._carried_plane(ref, cur_from_ref, est.covariance)]
+            # the motion from the last good frame and its covariance, before the keyframe
+            # changes (the motion covariance's previous frame is the last good one)
+            good_from_cur = orthonormalize(se3_inv(good.world_from_cur) @ world_from_cur)
+            motion_cov = self._motion_cov if ref is self._key else MotionCovariance()
+            cov = motion_cov.relative(est, ref.levels[0], ref.plane,
+                                      self._plane.reported_covariance,
+                                      good.cur_from_key if ref is self._key else np.eye(4),
+                                      good_from_cur)
+        for plane, plane_cov in planes + [(self._plane.mount_plane, None)]:
+            if self._reanchor(index, image, pyr, world_from_cur, plane, plane_cov):
+                self._lost_run, self._gap_steps = 0, []
                 self._gap_variance = np.zeros(6)  # the next motions are from this keyframe
                 self._recent_msd.clear()  # a fresh start: no msd history yet
-                return replace(res, status=FrameStatus.REINIT, keyframe=self._key.index,
-                               reason=f"re-initialised after {lost_for} lost frames ({reason})")
+                self._world_from_prev = world_from_cur
+                self._good = GoodFrame(index, image, world_from_cur, np.eye(4))
+                words = f"re-initialised after {lost_for} lost frames ({reason})"
+                if resolved is None:
+                    return replace(res, status=FrameStatus.REINIT, keyframe=self._key.index,
+                                   reason=words)
+                # the row: from the last lost frame's predicted pose to the re-solved one, its
+                # covariance the re-solved motion's plus what the lost frames left
+                cov = cov + np.diag(gap_before)
+                # the gap's mean motion per frame is the next prediction
+                self._velocity = se3_exp(-se3_log(good_from_cur) / (index - good.index))
+                return replace(
+                    res, status=FrameStatus.REINIT, keyframe=self._key.index,
+                    world_from_cam=world_from_cur,
+                    prev_from_cur=orthonormalize(se3_inv(world_from_prev) @ world_from_cur),
+                    msd=est.msd, iterations=est.iterations, points=est.points,
+                    std=np.sqrt(np.clip(np.diag(cov), 0.0, None)), covariance=cov,
+                    gain=est.gain, bias=est.bias,
+                    reason=f"{words}; the gap re-solved from frame {good.index}",
+                    gap=GapClosure(good.index, res.world_from_cam, variances))
         return res
 
 

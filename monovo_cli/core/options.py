@@ -147,6 +147,7 @@ class TrackOptions:
     reanchor_msd_ratio: float = 2.0
     feature_hypothesis: bool = True
     reinit_after: int = 2
+    resolve_gaps: bool = True
     min_inliers: float = 0.3
     msd_factor: float = 6.0
     max_condition: float = 1e7

@@ -14,6 +14,7 @@ import numpy as np
 
 from monovo_cli.core.keyframe import Keyframe
 from monovo_cli.core.plane.belief import PlaneLink
+from monovo_cli.core.recovery.gap import GapClosure
 from monovo_cli.core.status import FrameStatus, mostly_lost
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.geometry.trajectory import path_length
@@ -49,9 +50,12 @@ class TrackRun:
     ``iterations`` (N,); ``points`` (N,); ``std`` (N, 6) of (tx, ty, tz) m and (rx, ry, rz)
     rad of ``prev_from_cur`` (NaN where none); ``covariance`` (N, 6, 6) the same as a matrix.
     ``keyframes``: every keyframe anchored, oldest first (a keyframe rebuilt in place
-    replaces its earlier record). ``trajectory`` (N, 4, 4): the poses written to
-    trajectory.csv / .tum, ``world_from_cam`` re-scaled in hindsight
-    (:mod:`monovo_cli.mapping.smoothing`) or ``world_from_cam`` itself. ``seconds``: the
+    replaces its earlier record). ``gaps``: ``(frame index, GapClosure)`` of every frame
+    that closed a run of lost frames by measuring its pose directly
+    (:mod:`monovo_cli.core.recovery.gap`). ``trajectory`` (N, 4, 4): the poses written to
+    trajectory.csv / .tum, ``world_from_cam`` with the gaps' corrections spread over their
+    lost frames (:mod:`monovo_cli.mapping.gaps`) and re-scaled in hindsight
+    (:mod:`monovo_cli.mapping.smoothing`), or ``world_from_cam`` itself. ``seconds``: the
     wall-clock time of the run.
     """
 
@@ -69,6 +73,7 @@ class TrackRun:
     keyframes: tuple[KeyRecord, ...]
     trajectory: np.ndarray
     seconds: float = 0.0
+    gaps: tuple[tuple[int, GapClosure], ...] = ()
 
     @property
     def frames(self) -> int:
@@ -147,6 +152,11 @@ class RunRecorder:
         return tuple(self._keys[k] for k in sorted(self._keys))
 
     @property
+    def gaps(self) -> tuple[tuple[int, GapClosure], ...]:
+        """``(frame index, GapClosure)`` of the frames added that closed lost ones."""
+        return tuple((r.index, r.gap) for r in self._frames if getattr(r, "gap", None) is not None)
+
+    @property
     def last_status(self) -> FrameStatus | None:
         return self._frames[-1].status if self._frames else None
 
@@ -169,4 +179,4 @@ class RunRecorder:
             covariance=np.array([r.covariance for r in f], dtype=float).reshape(-1, 6, 6),
             keyframes=self.keyframes,
             trajectory=W if trajectory is None else np.asarray(trajectory, dtype=float),
-            seconds=float(seconds))
+            seconds=float(seconds), gaps=self.gaps)

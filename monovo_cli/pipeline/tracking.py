@@ -35,6 +35,7 @@ from monovo_cli.errors import InputError, TrackingError
 from monovo_cli.geometry.plane import Plane, pitch_roll_deg
 from monovo_cli.io.config import InitConfig, check_frame_size, load_init
 from monovo_cli.io.sources import Frame, FrameSource, find_init_yaml, open_frames, resolve_sequence
+from monovo_cli.mapping.gaps import close_gaps
 from monovo_cli.mapping.smoothing import SmoothedDrive, smooth_drive
 from monovo_cli.mapping.terrain_map import TerrainMap
 from monovo_cli.pipeline.read_ahead import read_frames
@@ -259,23 +260,25 @@ class Tracking:
         return len(self._recorder)
 
     def trajectory(self) -> np.ndarray:
-        """(n, 4, 4) the poses to write of the n frames recorded so far: smoothed in
-        hindsight over them (``smooth``) or as estimated."""
+        """(n, 4, 4) the poses to write of the n frames recorded so far: the lost frames
+        moved with the gaps closed after them (:func:`~monovo_cli.mapping.gaps.close_gaps`),
+        then smoothed in hindsight over them (``smooth``)."""
         rec = self._recorder
-        W = rec.world_from_cam.reshape(-1, 4, 4)
+        W = close_gaps(rec.index, rec.world_from_cam.reshape(-1, 4, 4), rec.gaps)
         if not self.smooth:
             return W
         with one_blas_thread():
             return smooth_drive(rec.index, W, [(k.index, k) for k in rec.keyframes]).world_from_cam
 
     def result(self, seconds: float = 0.0) -> TrackRun:
-        """The run of the frames recorded, smoothed in hindsight once (``smooth``); the
-        terrain (when kept) is finished against the last frame and placed with the same
-        smoothing (:attr:`drive`)."""
+        """The run of the frames recorded, its lost frames moved with the gaps closed after
+        them and smoothed in hindsight once (``smooth``); the terrain (when kept) is
+        finished against the last frame and placed with the same smoothing (:attr:`drive`)."""
         rec = self._recorder
         W = rec.world_from_cam.reshape(-1, 4, 4)
+        closed = close_gaps(rec.index, W, rec.gaps)
         with one_blas_thread():
-            self.drive = (smooth_drive(rec.index, W, [(k.index, k) for k in rec.keyframes])
+            self.drive = (smooth_drive(rec.index, closed, [(k.index, k) for k in rec.keyframes])
                           if self.smooth and len(rec) else None)
             if self.drive is not None and self.drive.key_index:
                 log.info("the ground at frame %d as the whole drive measured it: %s; "
@@ -285,7 +288,7 @@ class Tracking:
             if self.terrain is not None and len(rec):
                 last_lost = rec.last_status == FrameStatus.LOST
                 self.terrain.finish(None if last_lost else self._last_image, W[-1])
-        return rec.result(self.drive.world_from_cam if self.drive is not None else None, seconds)
+        return rec.result(self.drive.world_from_cam if self.drive is not None else closed, seconds)
 
     def _images(self) -> Iterator[tuple[int, float, np.ndarray | None]]:
         """``(index, timestamp, image)`` of every frame for the core's loop, frame 0 as
