@@ -105,6 +105,8 @@ STANDING_SHARE = 0.2  # a lost frame with no motion seen yet: std of each transl
 STANDING_DEG = 10.0  # ... and of each rotation, deg
 CHANCE_SHARE = 0.5  # a fit leaving half the keyframe's intensity variance is no fit
 REINIT_NOISE_SHARE = 0.3  # a fresh keyframe needs noise below this share of the contrast
+COVER = 4.0  # a row's error is to stay within this many of its std
+UNFORESEEN_COVER = 4.0  # a change from the prediction beyond this many std is not foreseen
 
 
 class OdometryState(Enum):
@@ -354,8 +356,10 @@ class Odometry:
         if self._gap_variance.any():  # the previous pose was only predicted: its error is ours
             cov = cov + np.diag(self._gap_variance)
             self._gap_variance = np.zeros(6)
-        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         motion = _motion_change(prev_from_cur, np.eye(4))
+        cov = cov + np.diag(self._unforeseen(motion, np.sqrt(np.clip(np.diag(cov), 0.0, None)),
+                                             index))
+        std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         if self._last_motion is not None and self._last_accepted == index - 1:
             self._motion_changes.append(np.abs(motion - self._last_motion))
         self._last_motion, self._last_std, self._last_accepted = motion, std, index
@@ -422,6 +426,27 @@ class Odometry:
             step = np.r_[np.full(3, STANDING_SHARE * d), np.full(3, np.radians(STANDING_DEG))]
         spread = step * np.sqrt(self._lost_run if lost_run is None else lost_run)
         return np.sqrt(spread ** 2 + self._last_std ** 2 + bridged ** 2)
+
+    def _unforeseen(self, motion: np.ndarray, std: np.ndarray, index: int) -> np.ndarray:
+        """(6,) the variance (m^2, rad^2) an accepted frame's motion must add for a change the
+        prediction did not foresee: zeros unless its motion ``motion`` (6,: t m, rotation
+        vector rad) differs from the previous frame's by more than UNFORESEEN_COVER times
+        the two uncertainties, its own ``std`` (6,) and the prediction's (what a lost row
+        would have stated here), on some axis; then ``(change / COVER)^2`` on every axis.
+
+        The fit passed every check, so either the motion changed (a rover stopping to turn,
+        a hand-held jerk: the estimate is right) or the fit found a wrong minimum that
+        explains the images as well (the prediction was right). The images cannot tell the
+        two apart, and a row marked lost would hold the prediction, wrong in the first case;
+        so the estimate is kept and its std made to cover the prediction within COVER std.
+        """
+        if self._last_motion is None or self._last_accepted != index - 1:
+            return np.zeros(6)
+        change = motion - self._last_motion
+        expected = np.sqrt(std ** 2 + self._prediction_std(np.zeros(6), 1) ** 2)
+        if np.all(np.abs(change) <= UNFORESEEN_COVER * expected):
+            return np.zeros(6)
+        return (change / COVER) ** 2
 
     # -- checks -----------------------------------------------------------------------
     def _search(self, key: Keyframe, pyr: list[np.ndarray], guess: np.ndarray,
