@@ -151,7 +151,7 @@ class Odometry:
         self._velocity = np.eye(4)  # cur_from_prev of the last accepted frame (none: standing)
         self._state = OdometryState.STARTING
         self._gain, self._bias = 1.0, 0.0
-        self._recent_msd: deque[float] = deque(maxlen=15)
+        self._recent_msd: deque[float] = deque(maxlen=15)  # accepted frames' robust msd
         self._sigma = 1.0  # noise sigma of the current frame's differences (difference_sigma)
         self._chance_msd = np.inf  # msd of unrelated images (see step)
         self._prev_image: np.ndarray | None = None
@@ -367,7 +367,7 @@ class Odometry:
         self._world_from_prev = world_from_cur
         self._cur_from_key_prev = cur_from_key
         self._gain, self._bias = gain, bias
-        self._recent_msd.append(est.msd)
+        self._recent_msd.append(_robust_msd(est))
         self._lost_run, self._gap_steps = 0, []
         gap = None if closing is None else GapClosure(self._good.index, *closing)
         self._good = GoodFrame(index, image, world_from_cur, cur_from_key)
@@ -470,14 +470,16 @@ class Odometry:
             return "intensity differences do not fit the motion"
         if est.msd > CHANCE_SHARE * self._chance_msd:
             return "intensity differences no better than chance"
-        # msd baseline: the recent good frames (but at least the two images' noise). Before
-        # there are any the check does not apply: on real images the plane model's own error
-        # (lens, parallax, lighting) can exceed the noise several times over from frame 1 on.
+        # The fit of the bulk of the points (the robust msd: a region the robust weights reject,
+        # a reflection, a hand, does not count) against the recent good frames' (but at least
+        # the two images' noise): far above both, it does not hold. Before there are any the
+        # check does not apply: on real images the plane model's own error (lens, parallax,
+        # lighting) can exceed the noise many times over from frame 1 on.
         if self._recent_msd:
             noise = 2.0 * self._sigma ** 2
             baseline = max(float(np.median(self._recent_msd)), noise, 1.0)
-            if est.msd > self.options.msd_factor * baseline:
-                return "mean squared difference rose sharply"
+            if _robust_msd(est) > self.options.msd_factor * baseline:
+                return "robust mean squared difference rose sharply"
         if est.finest_iterations >= self.options.estimator.max_iterations:
             return "no convergence within the iteration cap"
         return ""

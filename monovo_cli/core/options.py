@@ -124,7 +124,8 @@ class TrackOptions:
     (status ``reinit``), its pose bridged by the prediction, its plane the keyframe's carried
     there fused with the mounting prior.
     A frame is lost when fewer than ``min_inliers`` of its points agree within the noise,
-    its msd exceeds ``msd_factor`` times the recent median, the normal matrix's condition
+    its robust msd (the squared MAD scale of its differences) exceeds ``msd_factor`` times
+    the recent frames' median and the two images' noise, the normal matrix's condition
     number exceeds ``max_condition``, the finest level hits the iteration cap, or its motion
     exceeds ``max_step_m`` / ``max_step_deg``.
     With ``terrain_grid``, a keyframe that is left gets the heights of its ground off its plane,
