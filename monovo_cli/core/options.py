@@ -122,7 +122,10 @@ class TrackOptions:
     level blurs and a few steps' perspective distorts, still matches there. After
     ``reinit_after`` lost frames in a row a fresh keyframe is anchored on the current frame
     (status ``reinit``), its pose bridged by the prediction, its plane the keyframe's carried
-    there fused with the mounting prior.
+    there fused with the mounting prior; with ``resolve_gaps`` the frame is first measured
+    directly from the last good frame before the lost ones, and anchored there if that
+    passes the checks (the trajectory written at the end then moves the lost frames onto
+    the path measured).
     A frame is lost when fewer than ``min_inliers`` of its points agree within the noise,
     its robust msd (the squared MAD scale of its differences) exceeds ``msd_factor`` times
     the recent frames' median and the two images' noise, the normal matrix's condition
