@@ -20,8 +20,9 @@ A keyframe plane known only loosely (tilt std above PLANE_SETTLED_DEG: a nominal
 stated uncertainty, a re-initialisation) is tested on every frame by :meth:`PlaneTracker.test`:
 images that contradict it correct it, images that confirm it make it exact. Frame 0's tilt is
 measured from the first frames whatever its uncertainty (:attr:`PlaneTracker.initial_tilt`):
-a contradiction is reported, and replaces nothing that init.yaml gives as exact (nor, with
-``keep_initial_tilt``, anything at all). At a re-anchor, :meth:`PlaneTracker.successor` gives
+a contradiction is reported (logged, kept in run.yaml) and corrects the tilt, a tilt given as
+exact then counting with the prior's width; the distance is kept, and with
+``keep_initial_tilt`` so is the tilt. At a re-anchor, :meth:`PlaneTracker.successor` gives
 the new keyframe's plane: the MAP of the plane carried by the motion, the normal measured
 from the two images and the mounting prior. docs/algorithm.md section 4 gives the reasons and
 thresholds.
