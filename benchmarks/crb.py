@@ -129,24 +129,34 @@ MAX_RATIO = 2.0  # issue 13's acceptance: error <= 2x the bound on every axis
 QUANTISATION_VAR = 1.0 / 12.0  # rounding to whole grey levels
 
 
-def image_jacobian(renderer: GroundRenderer, g_from_cam0: np.ndarray, cam0_from_cam1: np.ndarray,
-                   *, h_t: float = H_T, h_r: float = H_R) -> np.ndarray:
-    """(H*W, 6) float64: d(noise-free frame 1)/d(t, r) of ``cam0_from_cam1 = [exp(r) | t]``,
-    grey levels per metre (columns 0-2) and per radian (3-5), central differences."""
+def central_differences(cam0_from_cam1: np.ndarray, f, h_t: float, h_r: float) -> list[np.ndarray]:
+    """The six central differences ``(f(+h) - f(-h)) / 2h`` of ``f(cam0_from_cam1')`` over the
+    parameters θ = (t, r) of ``cam0_from_cam1 = [exp(r) | t]``, steps ``h_t`` (m) on t and
+    ``h_r`` (rad) on r."""
     t = cam0_from_cam1[:3, 3].copy()
     r = so3_log(cam0_from_cam1[:3, :3])
     cols = []
     for j in range(6):
         h = h_t if j < 3 else h_r
-        imgs = []
+        values = []
         for sign in (1.0, -1.0):
             tp, rp = t.copy(), r.copy()
             if j < 3:
                 tp[j] += sign * h
             else:
                 rp[j - 3] += sign * h
-            imgs.append(renderer.render(g_from_cam0 @ pose_from_vectors(tp, rp)).astype(np.float64))
-        cols.append(((imgs[0] - imgs[1]) / (2.0 * h)).ravel())
+            values.append(f(pose_from_vectors(tp, rp)))
+        cols.append((values[0] - values[1]) / (2.0 * h))
+    return cols
+
+
+def image_jacobian(renderer: GroundRenderer, g_from_cam0: np.ndarray, cam0_from_cam1: np.ndarray,
+                   *, h_t: float = H_T, h_r: float = H_R) -> np.ndarray:
+    """(H*W, 6) float64: d(noise-free frame 1)/d(t, r) of ``cam0_from_cam1 = [exp(r) | t]``,
+    grey levels per metre (columns 0-2) and per radian (3-5), central differences."""
+    cols = central_differences(
+        cam0_from_cam1, lambda T: renderer.render(g_from_cam0 @ T).astype(np.float64).ravel(),
+        h_t, h_r)
     return np.stack(cols, axis=1)
 
 
@@ -241,20 +251,8 @@ def warp_jacobian(cam: PinholeCamera, g_from_cam0: np.ndarray, cam0_from_cam1: n
                   h_r: float = GEOMETRY_H_R) -> np.ndarray:
     """(N, 2, 6): ``dw_θ(x)/dθ`` of frame-1 pixels ``(x, y)``, θ = (t, r) of
     ``cam0_from_cam1 = [exp(r) | t]`` (px per m, px per rad), central differences."""
-    t = cam0_from_cam1[:3, 3].copy()
-    r = so3_log(cam0_from_cam1[:3, :3])
-    cols = []
-    for j in range(6):
-        h = h_t if j < 3 else h_r
-        pts = []
-        for sign in (1.0, -1.0):
-            tp, rp = t.copy(), r.copy()
-            if j < 3:
-                tp[j] += sign * h
-            else:
-                rp[j - 3] += sign * h
-            pts.append(frame0_points(cam, g_from_cam0, g_from_cam0 @ pose_from_vectors(tp, rp), x, y))
-        cols.append((pts[0] - pts[1]) / (2.0 * h))
+    cols = central_differences(
+        cam0_from_cam1, lambda T: frame0_points(cam, g_from_cam0, g_from_cam0 @ T, x, y), h_t, h_r)
     return np.stack(cols, axis=2)
 
 
