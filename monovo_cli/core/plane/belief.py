@@ -156,22 +156,36 @@ def fuse(beliefs: Sequence[PlaneBelief], iterations: int = 3) -> PlaneBelief:
 
 
 def propagate(plane: Plane, covariance: np.ndarray, cur_from_key: np.ndarray,
-              motion_covariance: np.ndarray) -> PlaneBelief:
+              motion_covariance: np.ndarray, sensitivity: np.ndarray | None = None
+              ) -> PlaneBelief:
     """Belief (a): ``plane`` (in the keyframe camera, ``covariance`` (3, 3) in its chart)
     in the current camera, given ``cur_from_key`` (4x4) whose twist xi (v, w) has
     ``motion_covariance`` (6, 6) with ``key_from_cur_true = exp(xi^) key_from_cur``.
 
     First order: ``n_c = R n``, ``d_c = d + n_c . t``; a distance error scales t with it (the
     images fix t / d), a tilt moves with R, and the motion's error moves the plane by
-    ``exp(-xi)`` in the keyframe (``d -= n . v``, ``n += n x w``). Plane and motion errors are
-    taken as independent.
+    ``exp(-xi)`` in the keyframe (``d -= n . v``, ``n += n x w``). ``sensitivity`` (6, 3):
+    the motion was estimated against ``plane``, so a plane error ``dx`` moved the estimate
+    too, by ``S dx`` (:func:`~monovo_cli.core.plane.motion_covariance.plane_sensitivity`);
+    the carried plane's error is then ``(J_plane + J_motion S) dx`` plus the motion's own
+    noise (:func:`carrying_jacobian`). None: plane and motion errors taken as independent.
     """
     cur, J = propagation_jacobian(plane, cur_from_key)
-    C = np.zeros((9, 9))
-    C[:3, :3] = covariance
-    C[3:, 3:] = motion_covariance
-    P = J @ C @ J.T
+    A = carrying_jacobian(J, sensitivity)
+    Jm = J[:, 3:]
+    P = A @ covariance @ A.T + Jm @ motion_covariance @ Jm.T
     return PlaneBelief(cur, np.linalg.inv(0.5 * (P + P.T)))
+
+
+def carrying_jacobian(J: np.ndarray, sensitivity: np.ndarray | None) -> np.ndarray:
+    """(3, 3) how an error of the keyframe's plane (its chart) reaches the carried plane:
+    ``J`` (3, 9) :func:`propagation_jacobian`'s; with ``sensitivity`` S (6, 3), through the
+    motion estimated against it too, ``J_plane + J_motion S``. At MER spacing (0.6 m steps,
+    45 deg down) that factor is about 1.24 on each tilt: a tilt error grows by a quarter per
+    keyframe unless the images' normal corrects it (docs/algorithm.md section 4)."""
+    if sensitivity is None:
+        return J[:, :3]
+    return J[:, :3] + J[:, 3:] @ sensitivity
 
 
 def propagation_jacobian(plane: Plane, cur_from_key: np.ndarray) -> tuple[Plane, np.ndarray]:
@@ -200,7 +214,7 @@ class PlaneLink:
     from the previous keyframe, for smoothing the previous one's in hindsight
     (Rauch-Tung-Striebel): ``innovation`` (3,) the MAP's chart coordinates at the carried
     plane, ``gain`` (3, 3) the previous keyframe's smoother gain ``P_k J^T P_pred^-1`` (P_k its
-    plane's covariance, J the plane block of :func:`propagation_jacobian`, P_pred the carried
+    plane's covariance, J :func:`carrying_jacobian`, P_pred the carried
     plane's covariance with the process noise).
 
     For re-solving the distances in hindsight (:func:`monovo_cli.mapping.smoothing.smoothed_distances`):
@@ -236,12 +250,13 @@ def smoothed_corrections(links: Sequence[PlaneLink | None]) -> list[np.ndarray]:
 
 
 def propagated_plane(key_plane: Plane, key_covariance: np.ndarray, cur_from_key: np.ndarray,
-                  motion_covariance: np.ndarray) -> PlaneBelief:
+                  motion_covariance: np.ndarray, sensitivity: np.ndarray | None = None
+                  ) -> PlaneBelief:
     """Belief (a) before its process noise: :func:`propagate`, a motion covariance that is not
-    finite (no estimate of it) taken as zero."""
+    finite (no estimate of it) taken as zero, and with it the sensitivity."""
     if not np.all(np.isfinite(motion_covariance)):
-        motion_covariance = np.zeros((6, 6))
-    return propagate(key_plane, key_covariance, cur_from_key, motion_covariance)
+        motion_covariance, sensitivity = np.zeros((6, 6)), None
+    return propagate(key_plane, key_covariance, cur_from_key, motion_covariance, sensitivity)
 
 
 def keyframe_plane(carried: PlaneBelief, *, measured: PlaneBelief | None = None,

@@ -47,6 +47,7 @@ from monovo_cli.core.plane.belief import (
     TILT_CHANGE_DEG,
     PlaneBelief,
     PlaneLink,
+    carrying_jacobian,
     default_sigmas,
     exact_covariance,
     fuse,
@@ -62,7 +63,7 @@ from monovo_cli.core.plane.belief import (
     transported,
 )
 from monovo_cli.core.plane.fit import refine_plane_and_motion
-from monovo_cli.core.plane.motion_covariance import PlaneCovarianceCalibration
+from monovo_cli.core.plane.motion_covariance import PlaneCovarianceCalibration, plane_sensitivity
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import orthonormalize
@@ -279,10 +280,14 @@ class PlaneTracker:
         tilt_change = np.radians(TILT_CHANGE_DEG)
         prior = self.mounting
         try:
-            carried = propagated_plane(key.plane, self.covariance, cur_from_key, est.covariance)
+            S = None
+            if est.weights is not None and est.normal is not None:
+                S = plane_sensitivity(key.levels[0], key.plane, est.cur_from_key, est.weights,
+                                      est.normal)
+            carried = propagated_plane(key.plane, self.covariance, cur_from_key, est.covariance, S)
             belief = keyframe_plane(carried, measured=measured, prior=prior,
                                     distance_change=distance_change, tilt_change=tilt_change)
-            J = propagation_jacobian(key.plane, cur_from_key)[1][:, :3]
+            J = carrying_jacobian(propagation_jacobian(key.plane, cur_from_key)[1], S)
             predicted = carried.covariance + process_noise(distance_change, tilt_change)
             link = PlaneLink(self.covariance @ J.T @ np.linalg.inv(predicted),
                              to_chart(carried.plane, belief.plane),
