@@ -103,6 +103,21 @@ class MotionCovariance:
         self._cov_prev = np.zeros((6, 6))
         self._sens_prev = np.zeros((6, 3))
         self._sample: tuple[KeyLevel, tuple] | None = None  # (level, its point_sample)
+        self._sens_of: tuple[Estimate, np.ndarray] | None = None  # (estimate, its sensitivity)
+
+    def sensitivity(self, est: Estimate, level: KeyLevel, plane: Plane) -> np.ndarray | None:
+        """:func:`plane_sensitivity` of ``est`` (against the keyframe of finest level ``level``
+        and ``plane``), worked out once per estimate; None without weights or normal matrix."""
+        if est.normal is None or est.weights is None:
+            return None
+        if self._sens_of is not None and self._sens_of[0] is est:
+            return self._sens_of[1]
+        if self._sample is None or self._sample[0] is not level:
+            self._sample = level, point_sample(level)
+        S = plane_sensitivity(level, plane, est.cur_from_key, est.weights, est.normal,
+                              self._sample[1])
+        self._sens_of = est, S
+        return S
 
     def relative(self, est: Estimate, level: KeyLevel, plane: Plane,
                  plane_covariance: np.ndarray | None, cur_from_key_prev: np.ndarray,
@@ -112,11 +127,9 @@ class MotionCovariance:
         ``plane_covariance`` (3, 3) in its chart; None: exact); the previous frame was at
         ``cur_from_key_prev`` (4x4). Becomes the previous frame for the next call."""
         sens = np.zeros((6, 3))
-        if plane_covariance is not None and est.normal is not None and est.weights is not None:
-            if self._sample is None or self._sample[0] is not level:
-                self._sample = level, point_sample(level)
-            sens = plane_sensitivity(level, plane, est.cur_from_key, est.weights, est.normal,
-                                     self._sample[1])
+        if plane_covariance is not None:
+            S = self.sensitivity(est, level, plane)
+            sens = sens if S is None else S
         A = adjoint(cur_from_key_prev)  # Ad(prev_from_key)
         D = sens - self._sens_prev
         inner = est.covariance + self._cov_prev

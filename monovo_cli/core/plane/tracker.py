@@ -63,7 +63,7 @@ from monovo_cli.core.plane.belief import (
     transported,
 )
 from monovo_cli.core.plane.fit import refine_plane_and_motion
-from monovo_cli.core.plane.motion_covariance import PlaneCovarianceCalibration, plane_sensitivity
+from monovo_cli.core.plane.motion_covariance import PlaneCovarianceCalibration
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import orthonormalize
@@ -262,14 +262,16 @@ class PlaneTracker:
 
     def successor(self, key: Keyframe, image: np.ndarray, est: Estimate,
                   cur_from_key: np.ndarray, gain: float, bias: float,
-                  options: EstimatorOptions
+                  options: EstimatorOptions, sensitivity: np.ndarray | None = None
                   ) -> tuple[Plane, np.ndarray | None, float, float, PlaneLink | None]:
         """The plane of a keyframe anchored on the current frame (finest level ``image``,
         ``cur_from_key`` its pose): ``(plane in its camera, covariance, gain, bias, link)``,
         the MAP of the plane carried by the motion, the joint refinement's normal and the
         mounting prior (with DISTANCE_CHANGE and TILT_CHANGE_DEG of process noise on the
-        carried plane); the brightness model is the refinement's; ``link`` what smoothing
-        ``key``'s plane in hindsight needs (:class:`~monovo_cli.core.plane.belief.PlaneLink`).
+        carried plane; ``sensitivity`` (6, 3) ``est``'s plane sensitivity, through which the
+        keyframe plane's error reaches the carried one, :func:`carrying_jacobian`); the
+        brightness model is the refinement's; ``link`` what smoothing ``key``'s plane in
+        hindsight needs (:class:`~monovo_cli.core.plane.belief.PlaneLink`).
         If the beliefs cannot be combined the carried plane comes back with covariance None
         and no link."""
         fit = refine_plane_and_motion(key.levels[0].points, image, cur_from_key, key.plane,
@@ -279,11 +281,8 @@ class PlaneTracker:
         distance_change = DISTANCE_CHANGE * key.plane.distance
         tilt_change = np.radians(TILT_CHANGE_DEG)
         prior = self.mounting
+        S = sensitivity
         try:
-            S = None
-            if est.weights is not None and est.normal is not None:
-                S = plane_sensitivity(key.levels[0], key.plane, est.cur_from_key, est.weights,
-                                      est.normal)
             carried = propagated_plane(key.plane, self.covariance, cur_from_key, est.covariance, S)
             belief = keyframe_plane(carried, measured=measured, prior=prior,
                                     distance_change=distance_change, tilt_change=tilt_change)
