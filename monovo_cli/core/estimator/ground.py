@@ -111,9 +111,9 @@ def _even_spread(score: np.ndarray, cap: int, area: int, per_block: int = 4) -> 
     cap over ``area`` pixels; each block keeps its ``per_block`` strongest candidates, and if
     that is still more than ``cap`` the strongest overall are kept.
     """
-    ys, xs = np.nonzero(score > 0)
-    if len(ys) <= cap:
-        return ys, xs
+    positive = score > 0
+    if np.count_nonzero(positive) <= cap:
+        return np.nonzero(positive)
     h, w = score.shape
     s = max(2, int(np.sqrt(per_block * area / cap)))
     hb, wb = -(-h // s), -(-w // s)
@@ -123,16 +123,15 @@ def _even_spread(score: np.ndarray, cap: int, area: int, per_block: int = 4) -> 
     q = min(per_block, s * s)
     top = np.argpartition(-blocks, q - 1, axis=1)[:, :q]
     vals = np.take_along_axis(blocks, top, axis=1)
-    b = np.repeat(np.arange(hb * wb), q).reshape(hb * wb, q)
-    keep = vals > 0
-    top, vals, b = top[keep], vals[keep], b[keep]
+    b, j = np.nonzero(vals > 0)  # (block, rank) of the candidates, block by block
+    top, vals = top[b, j], vals[b, j]
     if len(vals) > cap:
         best = np.argpartition(-vals, cap - 1)[:cap]
         top, b = top[best], b[best]
-    ys = (b // wb) * s + top // s
-    xs = (b % wb) * s + top % s
-    order = np.lexsort((xs, ys))
-    return ys[order], xs[order]
+    # row-major order, as np.nonzero gives it (the pixels are distinct)
+    chosen = np.zeros((hb * s, wb * s), bool)
+    chosen[(b // wb) * s + top // s, (b % wb) * s + top % s] = True
+    return np.nonzero(chosen[:h, :w])
 
 
 def select_points(image: np.ndarray, camera: PinholeCamera, plane: Plane, corners: np.ndarray,
