@@ -91,7 +91,8 @@ def test_plane_sensitivity_predicts_the_re_estimated_motion(pair, dx):
         assert np.linalg.norm(p[block] - predicted[block]) < 0.15 * size, (p, predicted)
 
 
-@pytest.mark.parametrize("dx", [(0.0, math.radians(0.4), 0.0), (0.0, 0.0, math.radians(0.4)),
+@pytest.mark.parametrize("dx", [(0.015, 0.0, 0.0), (0.0, math.radians(0.4), 0.0),
+                                (0.0, 0.0, math.radians(0.4)),
                                 (-0.01, math.radians(-0.3), math.radians(0.3))])
 def test_carried_plane_error_goes_through_the_motion_too(pair, dx):
     """A keyframe plane off by ``dx``, carried with the motion estimated against it, lands
@@ -114,7 +115,8 @@ def test_carried_plane_error_goes_through_the_motion_too(pair, dx):
     for block in (slice(0, 1), slice(1, 3)):  # distance (m), tilts (rad)
         size = max(np.linalg.norm(predicted[block]), 1e-7)
         assert np.linalg.norm(seen[block] - predicted[block]) < 0.15 * size, (seen, predicted)
-    assert np.linalg.norm(seen[1:] - plane_only[1:]) > 2 * np.linalg.norm(seen[1:] - predicted[1:])
+    if dx[1] or dx[2]:
+        assert np.linalg.norm(seen[1:] - plane_only[1:]) > 2 * np.linalg.norm(seen[1:] - predicted[1:])
 
 
 def test_every_4th_point_gives_nearly_the_same_sensitivity(pair):
