@@ -260,7 +260,7 @@ def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float,
     def rho(res: np.ndarray) -> float:  # total robust cost at the level's scale
         return rho_sum(res, scale, opts.robust, huber_k=opts.huber_k, tukey_c=opts.tukey_c)
 
-    H, move = None, 0.0
+    H, move, cost = None, 0.0, None
     for _ in range(max_iterations):
         if nv < min_valid:
             break
@@ -293,7 +293,8 @@ def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float,
             if npar == 8:
                 gain, bias = gain + p[6], bias + p[7]
             break
-        cost = rho(r) / nv
+        if cost is None:  # (an accepted step's cost is the next iteration's)
+            cost = rho(r) / nv
         for _halving in range(4):
             if _halving:
                 T_new = T @ se3_exp(-p[:6])
@@ -301,11 +302,14 @@ def _solve_level(level: KeyLevel, image: np.ndarray, T: np.ndarray, gain: float,
             b_new = bias + (p[7] if npar == 8 else 0.0)
             r_new, valid_new = residuals(level, image, T_new, g_new, b_new, flag)
             nv_new = np.count_nonzero(valid_new)
-            if nv_new >= min_valid and rho(r_new) / nv_new <= cost * (1.0 + 1e-7):
-                break
+            if nv_new >= min_valid:
+                cost_new = rho(r_new) / nv_new
+                if cost_new <= cost * (1.0 + 1e-7):
+                    break
             p = 0.5 * p
         else:
             break
+        cost = cost_new
         if _halving:
             move = _probe_move(level, T, T_new)
         msd_old = _msd(r, nv)

@@ -32,7 +32,11 @@ def robust_weights(r: np.ndarray, kind: str, *, huber_k: float, tukey_c: float,
     if kind == "none":
         return np.ones(len(r), np.float32), scale
     a = np.abs(r) * np.float32(1.0 / scale)
-    if kind == "huber":
+    if kind == "huber" and a.dtype == np.float32:  # the same operations, in place
+        np.maximum(a, np.float32(1e-12), out=a)
+        np.divide(np.float32(huber_k), a, out=a)
+        w = np.minimum(a, np.float32(1.0), out=a)
+    elif kind == "huber":
         w = np.minimum(np.float32(1.0), np.float32(huber_k) / np.maximum(a, np.float32(1e-12)))
     elif kind == "tukey":
         q = np.clip(1.0 - a * a * np.float32(1.0 / tukey_c ** 2), 0.0, None)
@@ -49,7 +53,9 @@ def rho_sum(r: np.ndarray, scale: float, kind: str, *, huber_k: float, tukey_c: 
     a *= np.float32(1.0 / scale)
     if kind == "huber":
         m = np.minimum(a, np.float32(huber_k))
-        rho = m * (a - 0.5 * m)  # 0.5 a^2 inside k, k a - 0.5 k^2 outside
+        a -= 0.5 * m
+        a *= m
+        rho = a  # m (a - m / 2): 0.5 a^2 inside k, k a - 0.5 k^2 outside
     elif kind == "tukey":
         c = tukey_c
         q = np.clip(1.0 - (a / c) ** 2, 0.0, None)
