@@ -38,7 +38,9 @@ measurement and restored after it:
 The others are fields of ``TrackOptions`` passed to ``monovo_cli.track_frames``:
 ``reanchor_msd_ratio`` and the tracker's feature settings ``features.features``,
 ``features.detect_side``, ``features.fast_threshold``, ``features.ratio``,
-``features.ransac_px`` and ``features.refine``.
+``features.ransac_px`` and ``features.refine``, and ``keep_initial_tilt`` (whether frame 0's
+tilt is kept where the images contradict it: a rule of issue 24.1, swept since it decides
+what a user's init.yaml is worth).
 
 The real sequences are read from ``../shared/real`` when it exists; when it does not, the
 script says so and chooses on its own drives alone (no halves to report).
@@ -121,6 +123,10 @@ CONSTANTS = (
     Constant("features.refine", (False, True),
              "docs/benchmarks.md \"Why these settings\" (KITTI's rotation 3.6x without)",
              option="features.refine"),
+    Constant("keep_initial_tilt", (False, True),
+             "docs/algorithm.md 4 (a rule of issue 24.1: frame 0's tilt corrected where the "
+             "images contradict it; issue 24 saw KITTI clips' scale 8 % short when it was "
+             "replaced silently)", option="keep_initial_tilt"),
 )
 
 #: The own drives: name -> synthesize's arguments (512², noise variance 10).
