@@ -109,13 +109,26 @@ def _even_spread(score: np.ndarray, cap: int, area: int, per_block: int = 4) -> 
 
     The image is cut into square blocks sized so that ``per_block`` points per block fill the
     cap over ``area`` pixels; each block keeps its ``per_block`` strongest candidates, and if
-    that is still more than ``cap`` the strongest overall are kept.
+    that is still more than ``cap`` the strongest overall are kept (of equal ones, the first
+    in row-major order). Blocks of ``per_block`` pixels or fewer (with 4 per block, a cap of
+    more than 4/9 of the area: the finest level's) would keep every candidate, so the
+    strongest are then taken directly.
+    Rows and columns come back in row-major order.
     """
     positive = score > 0
     if np.count_nonzero(positive) <= cap:
         return np.nonzero(positive)
     h, w = score.shape
     s = max(2, int(np.sqrt(per_block * area / cap)))
+    if per_block >= s * s:  # every block would keep all its candidates: the strongest overall
+        ys, xs = np.nonzero(positive)
+        vals = score[ys, xs]
+        kth = len(vals) - cap
+        threshold = np.partition(vals, kth)[kth]  # the cap-th largest
+        keep = vals > threshold
+        ties = np.flatnonzero(vals == threshold)[:cap - int(np.count_nonzero(keep))]
+        keep[ties] = True  # (those equal to it first in row-major order)
+        return ys[keep], xs[keep]
     hb, wb = -(-h // s), -(-w // s)
     padded = np.zeros((hb * s, wb * s), np.float32)
     padded[:h, :w] = score
