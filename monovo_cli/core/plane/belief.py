@@ -181,13 +181,12 @@ def carrying_jacobian(J: np.ndarray, sensitivity: np.ndarray | None) -> np.ndarr
     """(3, 3) how an error of the keyframe's plane (its chart) reaches the carried plane:
     ``J`` (3, 9) :func:`propagation_jacobian`'s; with ``sensitivity`` S (6, 3), through the
     motion estimated against it too, ``J_plane + J_motion S`` on the tilt columns (the
-    distance column of S, the translation's scale, is J's ``d_c / d`` already). At MER spacing (0.6 m steps,
-    45 deg down) that factor is about 1.24 on each tilt: a tilt error grows by a quarter per
-    keyframe unless the images' normal corrects it (docs/algorithm.md section 4)."""
+    distance column of S, the translation's scale, is J's ``d_c / d`` already). At MER
+    spacing (0.6 m steps, 45 deg down) that factor is about 1.24 on each tilt: a tilt error
+    grows by a quarter per keyframe unless the images' normal corrects it
+    (docs/algorithm.md section 4)."""
     A = np.array(J[:, :3])
     if sensitivity is not None:
-        # the distance column is already in J's plane block: a distance error scales the
-        # translation with it (``d_c / d``), which is what S's distance column says
         A[:, 1:] += J[:, 3:] @ sensitivity[:, 1:]
     return A
 

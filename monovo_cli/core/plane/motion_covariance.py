@@ -126,10 +126,8 @@ class MotionCovariance:
         as ``est`` against the keyframe of finest level ``level`` and ``plane`` (covariance
         ``plane_covariance`` (3, 3) in its chart; None: exact); the previous frame was at
         ``cur_from_key_prev`` (4x4). Becomes the previous frame for the next call."""
-        sens = np.zeros((6, 3))
-        if plane_covariance is not None:
-            S = self.sensitivity(est, level, plane)
-            sens = sens if S is None else S
+        S = None if plane_covariance is None else self.sensitivity(est, level, plane)
+        sens = np.zeros((6, 3)) if S is None else S
         A = adjoint(cur_from_key_prev)  # Ad(prev_from_key)
         D = sens - self._sens_prev
         inner = est.covariance + self._cov_prev

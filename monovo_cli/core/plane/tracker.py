@@ -281,12 +281,12 @@ class PlaneTracker:
         distance_change = DISTANCE_CHANGE * key.plane.distance
         tilt_change = np.radians(TILT_CHANGE_DEG)
         prior = self.mounting
-        S = sensitivity
         try:
-            carried = propagated_plane(key.plane, self.covariance, cur_from_key, est.covariance, S)
+            carried = propagated_plane(key.plane, self.covariance, cur_from_key, est.covariance,
+                                       sensitivity)
             belief = keyframe_plane(carried, measured=measured, prior=prior,
                                     distance_change=distance_change, tilt_change=tilt_change)
-            J = carrying_jacobian(propagation_jacobian(key.plane, cur_from_key)[1], S)
+            J = carrying_jacobian(propagation_jacobian(key.plane, cur_from_key)[1], sensitivity)
             predicted = carried.covariance + process_noise(distance_change, tilt_change)
             link = PlaneLink(self.covariance @ J.T @ np.linalg.inv(predicted),
                              to_chart(carried.plane, belief.plane),
