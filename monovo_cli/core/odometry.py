@@ -548,11 +548,13 @@ class Odometry:
         return True
 
     def _carried_plane(self, key: Keyframe, cur_from_key: np.ndarray,
-                       twist: np.ndarray | None = None) -> tuple[Plane, np.ndarray | None]:
+                       twist: np.ndarray | None = None, sensitivity: np.ndarray | None = None
+                       ) -> tuple[Plane, np.ndarray | None]:
         """The ground of a fresh keyframe at ``cur_from_key`` (4x4, from ``key``) and its chart
         covariance: the MAP of ``key``'s plane carried there and the mounting prior.
         ``twist`` (6, 6) the covariance of the pose (None: a predicted one, the variance the
-        lost frames' predictions left, ``_gap_variance``, taken on every axis). After a few
+        lost frames' predictions left, ``_gap_variance``, taken on every axis), ``sensitivity``
+        that of a pose estimated against ``key``'s plane (``carrying_jacobian``). After a few
         lost frames the prediction's tilt is worth less than the mounting's, and a fresh
         keyframe on a plane tilted by the prediction's error fits nothing. The carried plane
         alone (covariance None) where they cannot be fused."""
@@ -561,7 +563,8 @@ class Odometry:
             twist = np.diag(np.r_[np.full(3, gap[:3].max()), np.full(3, gap[3:].max())])
         d = key.plane.distance
         try:
-            carried = propagated_plane(key.plane, self._plane.covariance, cur_from_key, twist)
+            carried = propagated_plane(key.plane, self._plane.covariance, cur_from_key, twist,
+                                       sensitivity)
             fused = keyframe_plane(carried, prior=self._plane.mounting,
                                    distance_change=DISTANCE_CHANGE * d,
                                    tilt_change=np.radians(TILT_CHANGE_DEG))
@@ -634,11 +637,12 @@ class Odometry:
             ref, est = resolved
             cur_from_ref = orthonormalize(est.cur_from_key)
             world_from_cur = orthonormalize(ref.world_from_key @ se3_inv(cur_from_ref))
-            planes = [self._carried_plane(ref, cur_from_ref, est.covariance)]
+            motion_cov = self._motion_cov if ref is self._key else MotionCovariance()
+            planes = [self._carried_plane(ref, cur_from_ref, est.covariance,
+                                          motion_cov.sensitivity(est, ref.levels[0], ref.plane))]
             # the motion from the last good frame and its covariance, before the keyframe
             # changes (the motion covariance's previous frame is the last good one)
             good_from_cur = orthonormalize(se3_inv(good.world_from_cur) @ world_from_cur)
-            motion_cov = self._motion_cov if ref is self._key else MotionCovariance()
             cov = motion_cov.relative(est, ref.levels[0], ref.plane,
                                       self._plane.reported_covariance,
                                       good.cur_from_key if ref is self._key else np.eye(4),
