@@ -180,6 +180,12 @@ class Odometry:
         return self._key
 
     @property
+    def _predicted(self) -> np.ndarray:
+        """The constant velocity's ``cur_from_key`` (4x4) for the frame after the last one
+        recorded (accepted or lost)."""
+        return orthonormalize(self._velocity @ self._cur_from_key_prev)
+
+    @property
     def initial_tilt(self) -> InitialTilt | None:
         """The images' verdict on init.yaml's tilt, once measured on the first frames."""
         return self._plane.initial_tilt
@@ -285,7 +291,7 @@ class Odometry:
         gain, bias = (self._gain, self._bias) if brightness is None else brightness
         recovery = recovery or self._recovery
         if predicted is None:
-            predicted = orthonormalize(self._velocity @ self._cur_from_key_prev)
+            predicted = self._predicted
         starts = [lambda: self._search(key, pyr, guess, gain, bias)]
         if self.options.feature_hypothesis:
             starts += [partial(recovery.hypothesis, index, image, key.plane)]
@@ -316,7 +322,7 @@ class Odometry:
                 est: Estimate) -> FrameResult:
         closing = None  # the lost frames before this one: what the prediction would say here
         if self._lost_run and self._good is not None:
-            predicted = orthonormalize(self._velocity @ self._cur_from_key_prev)
+            predicted = self._predicted
             last = self._prediction_std(np.zeros(6), self._lost_run + 1)
             closing = (orthonormalize(self._key.world_from_key @ se3_inv(predicted)),
                        np.array(self._gap_steps + [last ** 2]))
@@ -387,7 +393,7 @@ class Odometry:
               est: Estimate | None = None) -> FrameResult:
         """The prediction, or the feature hypothesis where it contradicts it
         (:mod:`monovo_cli.core.recovery.lost_frames`)."""
-        predicted = orthonormalize(self._velocity @ self._cur_from_key_prev)
+        predicted = self._predicted
         cur_from_key = self._recovery.lost_pose(index, predicted)
         world_from_cur = orthonormalize(self._key.world_from_key @ se3_inv(cur_from_key))
         prev_from_cur = orthonormalize(se3_inv(self._world_from_prev) @ world_from_cur)
@@ -583,7 +589,7 @@ class Odometry:
         good, key = self._good, self._key
         if good is None or not self.options.resolve_gaps:
             return None
-        predicted = orthonormalize(self._velocity @ self._cur_from_key_prev)
+        predicted = self._predicted
         ref, gain, bias = key, self._gain, self._bias
         if good.index != key.index:
             try:
