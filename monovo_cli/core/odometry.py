@@ -42,13 +42,7 @@ from monovo_cli.core.estimator.terrain_grid import (
 )
 from monovo_cli.core.keyframe import Keyframe, build_keyframe, footprint
 from monovo_cli.core.options import TrackOptions
-from monovo_cli.core.plane.belief import (
-    DISTANCE_CHANGE,
-    TILT_CHANGE_DEG,
-    PlaneLink,
-    keyframe_plane,
-    propagated_plane,
-)
+from monovo_cli.core.plane.belief import PlaneLink
 from monovo_cli.core.plane.motion_covariance import MotionCovariance
 from monovo_cli.core.plane.tracker import InitialTilt, Mounting, PlaneTracker
 from monovo_cli.core.recovery.gap import GapClosure
@@ -567,16 +561,7 @@ class Odometry:
         if twist is None:
             gap = self._gap_variance
             twist = np.diag(np.r_[np.full(3, gap[:3].max()), np.full(3, gap[3:].max())])
-        d = key.plane.distance
-        try:
-            carried = propagated_plane(key.plane, self._plane.covariance, cur_from_key, twist,
-                                       sensitivity)
-            fused = keyframe_plane(carried, prior=self._plane.mounting,
-                                   distance_change=DISTANCE_CHANGE * d,
-                                   tilt_change=np.radians(TILT_CHANGE_DEG))
-            return fused.plane, fused.covariance
-        except (ValueError, np.linalg.LinAlgError):
-            return key.plane.in_frame(cur_from_key), None
+        return self._plane.carried(key.plane, cur_from_key, twist, sensitivity)
 
     def _resolve_gap(self, index: int, image: np.ndarray, pyr: list[np.ndarray]
                      ) -> tuple[Keyframe, Estimate] | None:

@@ -260,6 +260,24 @@ class PlaneTracker:
                  "%.2f) from it, chi-square %.1f; %s", words, x[0], x[1], s[0], s[1], chi2,
                  "the tilt is corrected" if self.initial_tilt.adopted else "init.yaml's tilt is kept")
 
+    def carried(self, key_plane: Plane, cur_from_key: np.ndarray, twist: np.ndarray,
+                sensitivity: np.ndarray | None = None) -> tuple[Plane, np.ndarray | None]:
+        """The ground of a keyframe anchored without the images' normal (after lost frames):
+        ``(plane in its camera, covariance)``, the MAP of the keyframe's plane ``key_plane``
+        (covariance :attr:`covariance`) carried by ``cur_from_key`` (twist covariance
+        ``twist`` (6, 6), ``sensitivity`` as for :meth:`successor`) and the mounting prior,
+        with the same process noise; the carried plane alone (covariance None) where they
+        cannot be fused."""
+        try:
+            carried = propagated_plane(key_plane, self.covariance, cur_from_key, twist,
+                                       sensitivity)
+            fused = keyframe_plane(carried, prior=self.mounting,
+                                   distance_change=DISTANCE_CHANGE * key_plane.distance,
+                                   tilt_change=np.radians(TILT_CHANGE_DEG))
+            return fused.plane, fused.covariance
+        except (ValueError, np.linalg.LinAlgError):
+            return key_plane.in_frame(cur_from_key), None
+
     def successor(self, key: Keyframe, image: np.ndarray, est: Estimate,
                   cur_from_key: np.ndarray, gain: float, bias: float,
                   options: EstimatorOptions, sensitivity: np.ndarray | None = None
