@@ -149,17 +149,24 @@ class PlaneTracker:
         self.initial_tilt: InitialTilt | None = None
         self._tilt_checks = 0
         self._model_variance = 0.0  # (m^2) the ground seen departs from a plane given as exact
+        #: (2, 2) rad^2: the images contradicted frame 0's tilt given as exact by this much
+        #: (squared, per angle); one of the two is that far off, for the whole drive
+        self._disputed_tilt: np.ndarray | None = None
         self.consistency = PlaneCovarianceCalibration()
 
     @property
     def reported_covariance(self) -> np.ndarray:
         """(3, 3) :attr:`covariance` as the re-anchors so far say it is (for reporting only);
         where the images contradicted a plane given as exact, the ground they see departs
-        from it by up to the bobbing's width in distance too."""
+        from it by up to the bobbing's width in distance too, and every tilt from then on is
+        uncertain by the contradiction itself: the images and init.yaml disagreed by that
+        much, one of them is that far off, and the tool cannot tell which."""
         P = self.consistency.reported(self.covariance)
-        if self._model_variance:
+        if self._model_variance or self._disputed_tilt is not None:
             P = P.copy()
             P[0, 0] += self._model_variance
+            if self._disputed_tilt is not None:
+                P[1:, 1:] += self._disputed_tilt
         return P
 
     @property
@@ -214,6 +221,11 @@ class PlaneTracker:
         chi2 = tilt_chi2(fit.measured, key.plane)
         precise = measured_tilt_std_deg(fit.measured) < CONFIRMED_DEG
         keep = key.index == 0 and self.keep_initial_tilt
+        if (key.index == 0 and chi2 >= CONSISTENT_CHI2 and self._disputed_tilt is None
+                and tilt_std_deg(self.covariance) < self.sigmas[1]):
+            got = _tilt_from(fit.measured, key.plane)  # a tilt given as exact, contradicted
+            if got is not None:
+                self._disputed_tilt = np.diag(got[0] ** 2)
         if key.index == 0 and self.initial_tilt is None:
             self._tilt_checks += 1
             if precise or chi2 >= CONSISTENT_CHI2 or self._tilt_checks >= TILT_CHECK_FRAMES:
@@ -245,14 +257,10 @@ class PlaneTracker:
 
     def _record_initial_tilt(self, measured: PlaneBelief, plane: Plane, chi2: float,
                              frame: int, adopted: bool) -> None:
-        L, eta = measured.in_chart(plane)
-        L2 = L[1:, 1:]
-        try:
-            C = np.linalg.inv(L2)
-        except np.linalg.LinAlgError:
+        got = _tilt_from(measured, plane)
+        if got is None:
             return
-        x = np.degrees(C @ eta[1:])
-        s = np.degrees(np.sqrt(np.clip(np.diag(C), 0.0, None)))
+        x, s = np.degrees(got[0]), np.degrees(np.sqrt(np.clip(np.diag(got[1]), 0.0, None)))
         self.initial_tilt = InitialTilt((float(x[0]), float(x[1])), (float(s[0]), float(s[1])),
                                         float(chi2), frame, bool(adopted and chi2 >= CONSISTENT_CHI2))
         words = ("contradict" if chi2 >= CONSISTENT_CHI2 else "agree with")
@@ -318,3 +326,14 @@ class PlaneTracker:
             return key.plane.in_frame(cur_from_key), None, fit.gain, fit.bias, None
         self.consistency.reanchored(carried, belief, prior, distance_change)
         return belief.plane, belief.covariance, fit.gain, fit.bias, link
+
+
+def _tilt_from(measured: PlaneBelief, plane: Plane) -> tuple[np.ndarray, np.ndarray] | None:
+    """The tilt angles (2,) rad the normal ``measured`` gives in the chart of ``plane``, and
+    their covariance (2, 2); None where the measurement holds no tilt information."""
+    L, eta = measured.in_chart(plane)
+    try:
+        C = np.linalg.inv(L[1:, 1:])
+    except np.linalg.LinAlgError:
+        return None
+    return C @ eta[1:], C
