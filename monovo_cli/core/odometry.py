@@ -275,7 +275,8 @@ class Odometry:
         the feature hypothesis each start the estimator from the top level, and while no
         estimate passes the checks, the finer feature hypothesis
         (``TrackOptions.fine_features``), then the same matched in the reference's view
-        warped by the prediction (:mod:`monovo_cli.core.recovery.predicted_view`); the
+        warped by the prediction (:mod:`monovo_cli.core.recovery.predicted_view`), then the
+        finer one's settings at full resolution (frames larger than its level); the
         estimate that passes the checks with the most inliers is kept (``est``, failing
         with ``reason``, competes too).
 
@@ -294,6 +295,9 @@ class Odometry:
                 starts += [partial(recovery.hypothesis, index, image, key.plane, options=fine),
                            partial(recovery.hypothesis, index, image, key.plane, options=fine,
                                    predicted=predicted)]
+                full = replace(fine, level=0)  # last, frames larger than fine's: full resolution
+                if full.level_for(self.camera) != fine.level_for(self.camera):
+                    starts += [partial(recovery.hypothesis, index, image, key.plane, options=full)]
         for i, start in enumerate(starts):
             if i >= 2 and not reason:
                 break
