@@ -349,6 +349,8 @@ class Odometry:
             plane_cur, plane_cov, gain, bias, link = self._plane.successor(
                 key, pyr[0], est, cur_from_key, gain, bias, self.options.estimator,
                 self._motion_cov.sensitivity(est, key.levels[0], key.plane))
+            if recovering and plane_cov is not None:
+                plane_cov = self._plane.loosened(plane_cov)
         world_from_cur = orthonormalize(key.world_from_key @ se3_inv(cur_from_key))
         prev_from_cur = orthonormalize(se3_inv(self._world_from_prev) @ world_from_cur)
         cov = self._motion_cov.relative(est, key.levels[0], key.plane,
