@@ -31,8 +31,8 @@ values: the final error over the whole run and over each half (frames ``0..N/2``
 **What is overridden, and how.** Module attributes are set for the duration of a
 measurement and restored after it:
 
-* ``TILT_CHANGE_DEG``: ``monovo_cli.core.plane.belief`` and ``monovo_cli.core.plane.tracker``
-  (which imports it by name);
+* ``TILT_CHANGE_DEG`` and ``DISTANCE_CHANGE_PLANAR``: ``monovo_cli.core.plane.belief`` and
+  ``monovo_cli.core.plane.tracker`` (which imports them by name);
 * ``MIN_EXPLAINED``: ``monovo_cli.core.estimator.terrain_grid``.
 
 The others are fields of ``TrackOptions`` passed to ``monovo_cli.track_frames``:
@@ -101,6 +101,11 @@ CONSTANTS = (
              "docs/algorithm.md 4 (kitti_ramp 16.8 -> 2.2 %), docs/benchmarks.md \"The keyframe "
              "plane's tilt process noise\"",
              attrs=tuple(f"monovo_cli.core.plane.{m}.TILT_CHANGE_DEG"
+                         for m in ("belief", "tracker"))),
+    Constant("DISTANCE_CHANGE_PLANAR", (0.002, 0.005, 0.01, 0.02),
+             "docs/algorithm.md 4 (the carried distance's process noise per keyframe where "
+             "frame 0's images confirmed init.yaml's tilt; 0.02, DISTANCE_CHANGE's, before)",
+             attrs=tuple(f"monovo_cli.core.plane.{m}.DISTANCE_CHANGE_PLANAR"
                          for m in ("belief", "tracker"))),
     Constant("MIN_EXPLAINED", (0.03, 0.1, 0.3, 1.0),
              "docs/algorithm.md 9 (kitti_ramp 3.6 -> 2.2 %; desk_b under 0.1)",

@@ -19,7 +19,11 @@ of the informations, iterated on the sphere) of
     itself; the motion's error adds ``-n . v`` to the distance and ``n x w`` to the normal.
     Then a process noise of DISTANCE_CHANGE times the distance and TILT_CHANGE_DEG on each
     tilt: on ground that is not a plane the carried plane errs by more than the motion's
-    covariance knows, and the new keyframe's patch of ground is not the old one. The tilt's
+    covariance knows, and the new keyframe's patch of ground is not the old one. Where the
+    images of frame 0 confirmed init.yaml's tilt, the ground seen is the plane under the
+    wheels, and the distance's is DISTANCE_CHANGE_PLANAR times the distance: the chain then
+    keeps frame 0's exact distance, where the larger one hands every keyframe's distance to
+    the mounting prior, and with it frame 0's own bob (:class:`PlaneTracker`). The tilt's
     is none by default: the carried normal's information then only grows from keyframe to
     keyframe, and the images' normal of each new patch, biased on curved ground, can walk it
     away from the mounting prior (why none was chosen: the docs section above);
@@ -50,6 +54,7 @@ from monovo_cli.geometry.plane import Plane, tangent_basis
 SIGMA_DISTANCE_FRACTION = 1.0 / 30.0  # default ground.sigma_distance: this x the distance
 SIGMA_DEG = 3.0  # default ground.sigma_deg
 DISTANCE_CHANGE = 0.02  # process noise of the carried distance per keyframe: this x the distance
+DISTANCE_CHANGE_PLANAR = 0.002  # ... where frame 0's images confirmed init.yaml's tilt
 TILT_CHANGE_DEG = 0.0  # process noise of each carried tilt angle per keyframe (deg)
 
 

@@ -43,6 +43,7 @@ from monovo_cli.core.plane.belief import (
     CONFIRMED_DEG,
     CONSISTENT_CHI2,
     DISTANCE_CHANGE,
+    DISTANCE_CHANGE_PLANAR,
     PLANE_SETTLED_DEG,
     TILT_CHANGE_DEG,
     PlaneBelief,
@@ -168,6 +169,17 @@ class PlaneTracker:
             if self._disputed_tilt is not None:
                 P[1:, 1:] += self._disputed_tilt
         return P
+
+    @property
+    def distance_change(self) -> float:
+        """The carried distance's process noise per keyframe, a share of the distance:
+        DISTANCE_CHANGE_PLANAR once the images of frame 0 confirmed init.yaml's tilt (the
+        ground seen is the plane under the wheels, and the distance changes only as the
+        motion carries it), DISTANCE_CHANGE until then or where they contradicted it
+        (terrain, a road seen at grazing angles: the ground seen can change unseen between
+        keyframes). Chosen by ``benchmarks.held_out``."""
+        agreed = self.initial_tilt is not None and not self.initial_tilt.contradicts
+        return DISTANCE_CHANGE_PLANAR if agreed else DISTANCE_CHANGE
 
     @property
     def mounting_tilt_covariance(self) -> np.ndarray:
@@ -306,7 +318,7 @@ class PlaneTracker:
             carried = propagated_plane(key_plane, self.covariance, cur_from_key, twist,
                                        sensitivity)
             fused = keyframe_plane(carried, prior=self.mounting,
-                                   distance_change=DISTANCE_CHANGE * key_plane.distance,
+                                   distance_change=self.distance_change * key_plane.distance,
                                    tilt_change=np.radians(TILT_CHANGE_DEG))
             return fused.plane, fused.covariance
         except (ValueError, np.linalg.LinAlgError):
@@ -319,7 +331,7 @@ class PlaneTracker:
         """The plane of a keyframe anchored on the current frame (finest level ``image``,
         ``cur_from_key`` its pose): ``(plane in its camera, covariance, gain, bias, link)``,
         the MAP of the plane carried by the motion, the joint refinement's normal and the
-        mounting prior (with DISTANCE_CHANGE and TILT_CHANGE_DEG of process noise on the
+        mounting prior (with :attr:`distance_change` and TILT_CHANGE_DEG of process noise on the
         carried plane; ``sensitivity`` (6, 3) ``est``'s plane sensitivity, through which the
         keyframe plane's error reaches the carried one, :func:`carrying_jacobian`); the
         brightness model is the refinement's; ``link`` what smoothing ``key``'s plane in
@@ -330,7 +342,7 @@ class PlaneTracker:
                                       gain=gain, bias=bias, options=options, iterations=4)
         measured = None if fit.measured is None else \
             transported(fit.measured, orthonormalize(fit.cur_from_key))
-        distance_change = DISTANCE_CHANGE * key.plane.distance
+        distance_change = self.distance_change * key.plane.distance
         tilt_change = np.radians(TILT_CHANGE_DEG)
         prior = self.mounting
         try:

@@ -31,16 +31,18 @@ def drives(synth_drive):
                            noise_var=10.0, init_pose=c) for c in ("frame0", "nominal")}
 
 
-def test_both_conventions_are_unbiased_and_reading_one_as_the_other_is_not(drives):
-    """Final error, % of the path (measured, 60 frames of 256²): frame 0's ground 0.013 %,
-    the nominal mount 0.18 % (60 frames' bobbing does not average to the nominal mount);
-    frame 0's ground read as the nominal mount 0.23 %, the nominal mount read as frame 0's
-    ground 0.86 % (the crest's 1.3 cm over 1.5 m)."""
+def test_both_conventions_are_unbiased_and_reading_the_nominal_mount_as_frame_0s_is_not(drives):
+    """Final error, % of the path (measured, 60 frames of 256²): frame 0's ground 0.007 %,
+    the nominal mount 0.14 % (60 frames' bobbing does not average to the nominal mount); the
+    nominal mount read as frame 0's ground 0.76 % (the crest's 1.3 cm over 1.5 m). Frame 0's
+    ground read as the nominal mount costs nothing on this flat drive (0.007 %): the images
+    confirm its tilt, so the carried distance keeps frame 0's, which is right (0.23 % when
+    every keyframe's distance went to the mounting prior)."""
     as_frame0 = final_pct(drives["frame0"])
     as_nominal = final_pct(drives["nominal"])
-    assert as_frame0 < 0.1 and as_nominal < 0.3
+    assert as_frame0 < 0.05 and as_nominal < 0.3
     cfg = load_init(drives["frame0"] / "init.yaml")
     misread = final_pct(drives["frame0"], dataclasses.replace(cfg, nominal=True))
     cfg = load_init(drives["nominal"] / "init.yaml")
     misread_other = final_pct(drives["nominal"], dataclasses.replace(cfg, nominal=False))
-    assert misread > 2 * as_frame0 and misread_other > 2 * as_nominal
+    assert misread < 0.05 and misread_other > 2 * as_nominal
