@@ -1,8 +1,9 @@
 """Data monovo's authors did not make: the real sequences by halves, and synthetic drives whose
 assumptions nothing was tuned on. Final error and row integrity.
 
-    python -m benchmarks.integrity                 # ../shared/real by halves + 3 synthetic drives
+    python -m benchmarks.integrity                 # ../shared/real by halves + 4 synthetic drives
     python -m benchmarks.integrity --no-real       # the synthetic drives only
+    python -m benchmarks.integrity --no-real --only-mer --mer-seeds 14 15 16 17 18
 
 Per drive, tracked with default options (``monovo_cli.track_frames``), one core:
 
@@ -26,7 +27,7 @@ The synthetic drives (rendered here, seeds never used to choose a constant):
 * ``rolling-large``: rolling ground, 512², 60 frames, every second frame dropped (steps
   twice the drive's);
 * ``mer-1024``: MER spacing at 1024² (the default texture), 40 frames, frames 12 and 25
-  blanked.
+  blanked; ``--mer-seeds`` tracks it on other seeds too (``--only-mer``: nothing else).
 
 The real sequences are read from ``../shared/real`` when it exists (the script says when it
 does not; tests never read it).
@@ -55,6 +56,7 @@ from monovo_cli.synth.write import synthesize
 REAL = Path(__file__).resolve().parents[1].parent / "shared" / "real"
 OFF_M, OFF_DEG, COVER = 0.05, 1.0, 4.0
 ROAD_OFF_M = 0.3
+MER_SEED = 14  # mer-1024's seed; --mer-seeds adds others
 
 
 def beyond_cover(run: TrackRun, gt_prev_from_cur: dict[int, np.ndarray]) -> int:
@@ -155,8 +157,11 @@ def blank(seq: Path, frames: tuple[int, ...]) -> None:
         cv2.imwrite(str(paths[k]), np.zeros_like(cv2.imread(str(paths[k]), cv2.IMREAD_UNCHANGED)))
 
 
-def synthetic(root: Path) -> list[list[str]]:
+def synthetic(root: Path, mer_seeds: tuple[int, ...] = (14,), only_mer: bool = False
+              ) -> list[list[str]]:
     rows = []
+    if only_mer:
+        return _mer(root, mer_seeds, rows)
     mer = root / "mer-gravel"
     synthesize(mer, preset="mer", frames=40, size=(512, 512), noise_var=10.0, seed=11,
                texture="gravel")
@@ -172,10 +177,17 @@ def synthetic(root: Path) -> list[list[str]]:
                noise_var=10.0, seed=13)
     drop_every_second(large)
     rows.append(evaluate(large))
-    big = root / "mer-1024"
-    synthesize(big, preset="mer", frames=40, size=(1024, 1024), noise_var=10.0, seed=14)
-    blank(big, (12, 25))
-    rows.append(evaluate(big))
+    return _mer(root, mer_seeds, rows)
+
+
+def _mer(root: Path, mer_seeds: tuple[int, ...], rows: list[list[str]]) -> list[list[str]]:
+    for seed in mer_seeds:
+        big = root / f"mer-1024-{seed}"
+        synthesize(big, preset="mer", frames=40, size=(1024, 1024), noise_var=10.0, seed=seed)
+        blank(big, (12, 25))
+        rows.append(evaluate(big))
+        rows[-1][0] = "mer-1024" + ("" if seed == MER_SEED else f" (seed {seed})")
+        shutil.rmtree(big, ignore_errors=True)
     return rows
 
 
@@ -188,6 +200,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--real", type=Path, default=REAL, help="folder of the real sequences")
     ap.add_argument("--no-real", action="store_true", help="the synthetic drives only")
+    ap.add_argument("--mer-seeds", type=int, nargs="+", default=[MER_SEED],
+                    help=f"seeds of the mer-1024 drive (default {MER_SEED})")
+    ap.add_argument("--only-mer", action="store_true", help="of the synthetic drives, mer-1024 only")
     args = ap.parse_args()
     one_core()
     print(f"Machine: {machine()}; {load()} at the start\n")
@@ -201,7 +216,7 @@ def main() -> None:
         else:
             print(f"Real data not found at {args.real}: the real sequences are skipped.\n")
     with tempfile.TemporaryDirectory() as tmp:
-        rows = synthetic(Path(tmp))
+        rows = synthetic(Path(tmp), tuple(args.mer_seeds), args.only_mer)
         shutil.rmtree(tmp, ignore_errors=True)
     print(table("| drive | frames | path (m) | final error (% of path) | lost / reinit | "
                 "untrusted rows | rows > 4 std |", rows) + "\n")
