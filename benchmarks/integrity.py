@@ -27,7 +27,10 @@ The synthetic drives (rendered here, seeds never used to choose a constant):
 * ``rolling-large``: rolling ground, 512², 60 frames, every second frame dropped (steps
   twice the drive's);
 * ``mer-1024``: MER spacing at 1024² (the default texture), 40 frames, frames 12 and 25
-  blanked; ``--mer-seeds`` tracks it on other seeds too (``--only-mer``: nothing else).
+  blanked; ``--mer-seeds`` tracks it on other seeds too (``--only-mer``: nothing else);
+* ``mer-1024-turn``: the same drive (seed 14) with frames 16 and 17 dropped as well, so that
+  one step turns in place by 30 deg (frames 16 and 17 turn 16 and 13 deg, twice the drive's
+  largest step) and drives on 0.7 m: the turn the issue asks to be beyond the capture range.
 
 The real sequences are read from ``../shared/real`` when it exists (the script says when it
 does not; tests never read it).
@@ -57,6 +60,7 @@ REAL = Path(__file__).resolve().parents[1].parent / "shared" / "real"
 OFF_M, OFF_DEG, COVER = 0.05, 1.0, 4.0
 ROAD_OFF_M = 0.3
 MER_SEED = 14  # mer-1024's seed; --mer-seeds adds others
+TURN_DROPPED = (16, 17)  # mer-1024-turn: seed 14's frames 16 and 17 turn 16 and 13 deg
 
 
 def beyond_cover(run: TrackRun, gt_prev_from_cur: dict[int, np.ndarray]) -> int:
@@ -134,11 +138,16 @@ def crest_pose(seq: Path) -> None:
 
 def drop_every_second(seq: Path) -> None:
     """Keep the even frames of ``seq`` (and their ground truth): steps twice as long."""
-    frames = sorted((seq / "frames").glob("*.png"))
-    for p in frames[1::2]:
-        p.unlink()
+    keep_frames(seq, np.arange(0, len(sorted((seq / "frames").glob("*.png"))), 2))
+
+
+def keep_frames(seq: Path, keep: np.ndarray) -> None:
+    """Keep only the frames ``keep`` (indices, ascending) of ``seq`` and their ground truth."""
+    frames, kept = sorted((seq / "frames").glob("*.png")), set(keep.tolist())
+    for k, p in enumerate(frames):
+        if k not in kept:
+            p.unlink()
     ts, gt = read_tum(seq / "groundtruth.tum")
-    keep = np.arange(0, len(gt), 2)
     (seq / "groundtruth.tum").write_text(tum_text(ts[keep], gt[keep]))
     rel = [se3_inv(a) @ b for a, b in zip(gt[keep][:-1], gt[keep][1:])]
     lines = ["frame,tx,ty,tz,rx,ry,rz"]
@@ -188,6 +197,12 @@ def _mer(root: Path, mer_seeds: tuple[int, ...], rows: list[list[str]]) -> list[
         rows.append(evaluate(big))
         rows[-1][0] = "mer-1024" + ("" if seed == MER_SEED else f" (seed {seed})")
         shutil.rmtree(big, ignore_errors=True)
+    turn = root / "mer-1024-turn"
+    synthesize(turn, preset="mer", frames=40, size=(1024, 1024), noise_var=10.0, seed=MER_SEED)
+    blank(turn, (12, 25))
+    keep_frames(turn, np.array([k for k in range(40) if k not in TURN_DROPPED]))
+    rows.append(evaluate(turn))
+    shutil.rmtree(turn, ignore_errors=True)
     return rows
 
 
