@@ -264,6 +264,14 @@ class Odometry:
             if self._lost_run >= self.options.reinit_after and self._looks_usable(image):
                 return self._reinit(index, timestamp, image, pyr, reason)
             return self._lost(index, timestamp, reason, est)
+        if self._lost_run and self._good is not None and self._good.index != key.index:
+            # the first frame after lost frames, captured against the keyframe: measured from
+            # the last good frame instead where that sees it on more than twice the points
+            # (the keyframe's view can be a turn and two steps away, its fit on the little
+            # left in view biased by the change of view)
+            closer = self._resolve_gap(index, image, pyr)
+            if closer is not None and closer[0] is not key and closer[1].points > 2 * est.points:
+                return self._reinit(index, timestamp, image, pyr, "", resolved=closer)
         return self._accept(index, timestamp, image, pyr, est)
 
     def _capture(self, index: int, key: Keyframe, image: np.ndarray, pyr: list[np.ndarray],
@@ -615,18 +623,21 @@ class Odometry:
         return contrast > 1e-3 and estimate_noise_sigma(image) < REINIT_NOISE_SHARE * contrast
 
     def _reinit(self, index: int, timestamp: float, image: np.ndarray, pyr: list[np.ndarray],
-                reason: str) -> FrameResult:
+                reason: str, resolved: tuple[Keyframe, Estimate] | None = None) -> FrameResult:
         """Frames stay lost: anchor a fresh keyframe on this one at the predicted pose.
 
         The plane is the current keyframe's carried to the prediction fused with the mounting
         prior (:meth:`_carried_plane`), or the mount's plane (relative to the camera) when
         that one does not meet the region's rays in front of the camera; the gap since the
         last good frame is bridged by the prediction. A frame that cannot carry a keyframe
-        stays lost."""
+        stays lost. ``resolved`` the gap already re-solved (:meth:`_resolve_gap`; None: try
+        it here), ``reason`` why the frame was not tracked ("" for a frame that was, but
+        is measured better from the last good frame)."""
         lost_for, good = self._lost_run, self._good
         gap_before, world_from_prev = self._gap_variance.copy(), self._world_from_prev
-        resolved = self._resolve_gap(index, image, pyr)
-        res = self._lost(index, timestamp, reason)
+        if resolved is None:
+            resolved = self._resolve_gap(index, image, pyr)
+        res = self._lost(index, timestamp, reason or "no keyframe could be anchored on it")
         variances = np.array(self._gap_steps)  # (this frame's predicted motion is the last)
         world_from_cur, planes = res.world_from_cam, [self._carried_plane(self._key,
                                                                           self._cur_from_key_prev)]
@@ -645,13 +656,15 @@ class Odometry:
                                       good.cur_from_key if ref is self._key else np.eye(4),
                                       good_from_cur)
         for plane, plane_cov in planes + [(self._plane.mount_plane, None)]:
+            if plane_cov is not None:  # a frame after lost frames: its tilt is measured again
+                plane_cov = self._plane.loosened(plane_cov)
             if self._reanchor(index, image, pyr, world_from_cur, plane, plane_cov):
                 self._lost_run, self._gap_steps = 0, []
                 self._gap_variance = np.zeros(6)  # the next motions are from this keyframe
                 self._recent_msd.clear()  # a fresh start: no msd history yet
                 self._world_from_prev = world_from_cur
                 self._good = GoodFrame(index, image, world_from_cur, np.eye(4))
-                words = f"re-initialised after {lost_for} lost frames ({reason})"
+                words = f"re-initialised after {lost_for} lost frames" + (f" ({reason})" if reason else "")
                 if resolved is None:
                     return replace(res, status=FrameStatus.REINIT, keyframe=self._key.index,
                                    reason=words)
