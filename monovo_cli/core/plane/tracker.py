@@ -17,8 +17,12 @@ mount instead; with ``ground.nominal: true`` frame 0's plane is the nominal one,
 to the prior's width.
 
 A keyframe plane known only loosely (tilt std above PLANE_SETTLED_DEG: a nominal frame 0, a
-stated uncertainty, a re-initialisation) is tested on every frame by :meth:`PlaneTracker.test`:
-images that contradict it correct it, images that confirm it make it exact. Frame 0's tilt is
+stated uncertainty, a keyframe anchored after lost frames, :meth:`PlaneTracker.loosened`) is
+tested on every frame by :meth:`PlaneTracker.test`: images that contradict it correct it,
+images that confirm it make frame 0's exact and a later keyframe's as sure as they are. The
+contradiction of a tilt given as exact stays in the reported covariance, and on ground
+frame 0's images confirm the carried distance keeps frame 0's
+(:attr:`PlaneTracker.distance_change`). Frame 0's tilt is
 measured from the first frames whatever its uncertainty (:attr:`PlaneTracker.initial_tilt`):
 a contradiction is reported (logged, kept in run.yaml) and corrects the tilt, a tilt given as
 exact then counting with the prior's width; the distance is kept, and with
@@ -222,7 +226,8 @@ class PlaneTracker:
         key_image at the same pose, the frame re-estimated against it, the fused covariance)``
         comes back for the caller to check and adopt; the plane keeps its distance and that
         distance's uncertainty. If the images confirm an unsettled plane to within
-        CONFIRMED_DEG it is taken as exact (:attr:`covariance` shrinks). None unless the plane
+        CONFIRMED_DEG, frame 0's is taken as exact and a later keyframe's takes the
+        measurement's tilt covariance (:attr:`covariance` shrinks). None unless the plane
         was corrected; never for frame 0's with ``keep_initial_tilt``.
         """
         fit = refine_plane_and_motion(key.levels[0].points, pyramid[0], est.cur_from_key,
