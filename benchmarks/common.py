@@ -72,6 +72,20 @@ def final_drift(est_world_from_cam: np.ndarray, gt_world_from_cam: np.ndarray) -
     return err, dist, float(np.degrees(np.linalg.norm(so3_log(dR[:3, :3]))))
 
 
+def keyframe_tilt_errors(run, seq: Path) -> dict[int, float]:
+    """Each keyframe's tilt error (deg) of ``run`` (a :class:`~monovo_cli.core.run.TrackRun`)
+    against the true ground of the synthetic sequence ``seq`` (``terrain.npz``'s
+    ``g_from_cam``): the angle between the keyframe plane's normal and the ground's in that
+    camera, by keyframe index."""
+    g_from_cam = np.load(seq / "terrain.npz")["g_from_cam"]
+    errors = {}
+    for key in run.keyframes:
+        true_normal = -g_from_cam[key.index][:3, :3].T @ np.array([0.0, 0.0, 1.0])
+        cos = min(1.0, abs(float(key.plane.normal @ true_normal)))
+        errors[key.index] = float(np.degrees(np.arccos(cos)))
+    return errors
+
+
 def std_columns(path: Path) -> np.ndarray:
     """The std_tx..std_rz columns of a motion.csv (N, 6) (m, deg); NaN where empty (lost)."""
     import csv

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import math
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -32,7 +31,7 @@ import numpy as np
 
 import monovo_cli.core.plane.belief as belief
 import monovo_cli.core.plane.tracker as tracker
-from benchmarks.common import load, machine, one_core
+from benchmarks.common import keyframe_tilt_errors, load, machine, one_core
 from benchmarks.integrity import blank, final_pct, table
 from monovo_cli import track_frames
 from monovo_cli.io.formats import read_tum
@@ -57,14 +56,8 @@ def without_sensitivity() -> Iterator[None]:
 def tilt_errors(seq: Path) -> tuple[list[float], float]:
     """(each keyframe's tilt error, deg; the final error, % of the path) of ``seq`` tracked."""
     run = track_frames(seq)
-    g_from_cam = np.load(seq / "terrain.npz")["g_from_cam"]
-    errors = []
-    for key in run.keyframes:
-        true_normal = -g_from_cam[key.index][:3, :3].T @ np.array([0.0, 0.0, 1.0])
-        cos = min(1.0, abs(float(key.plane.normal @ true_normal)))
-        errors.append(math.degrees(math.acos(cos)))
     _, gt = read_tum(seq / "groundtruth.tum")
-    return errors, final_pct(run.trajectory, gt)
+    return list(keyframe_tilt_errors(run, seq).values()), final_pct(run.trajectory, gt)
 
 
 def main() -> None:

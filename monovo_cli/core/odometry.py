@@ -270,7 +270,7 @@ class Odometry:
             # (the keyframe's view can be a turn and two steps away, its fit on the little
             # left in view biased by the change of view)
             closer = self._resolve_gap(index, image, pyr)
-            if closer is not None and closer[0] is not key and closer[1].points > 2 * est.points:
+            if closer is not None and closer[1].points > 2 * est.points:
                 return self._reinit(index, timestamp, image, pyr, "", resolved=closer)
         return self._accept(index, timestamp, image, pyr, est)
 

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from benchmarks.common import keyframe_tilt_errors
 from monovo_cli import iter_track, track_frames
 from monovo_cli.cli import main
 from monovo_cli.core.odometry import Odometry
@@ -251,16 +252,6 @@ def test_a_frame_the_coarse_features_miss_is_bridged_at_full_resolution(synth_dr
     assert err < 0.01 * path, (err, path)
 
 
-def _keyframe_tilts(run, seq):
-    """Each keyframe's tilt error (deg) against the true ground (terrain.npz)."""
-    g_from_cam = np.load(seq / "terrain.npz")["g_from_cam"]
-    tilt = {}
-    for key in run.keyframes:
-        up = -g_from_cam[key.index][:3, :3].T @ np.array([0.0, 0.0, 1.0])
-        tilt[key.index] = np.degrees(np.arccos(min(1.0, abs(float(key.plane.normal @ up)))))
-    return tilt
-
-
 @pytest.fixture
 def mer17(synth_drive, tmp_path):
     """MER spacing at 1024² (seed 17), 16 frames, frame 12 blank: frame 13 is 1.3 m and an
@@ -279,7 +270,7 @@ def test_the_plane_after_a_loss_is_measured_again_not_carried(mer17):
     next keyframes (every row's rotation 40-70 std off); known only to the bobbing's width,
     the next frame measures it again and the keyframes after it are within 0.03 deg."""
     run = track_frames(mer17, options=replace(TrackOptions(), resolve_gaps=False))
-    tilt = _keyframe_tilts(run, mer17)
+    tilt = keyframe_tilt_errors(run, mer17)
     assert run.status[12] == FrameStatus.LOST and 13 in tilt, (run.status, tilt)
     after = [t for k, t in tilt.items() if k > 13]
     assert after and max(after) < 0.03, tilt
@@ -294,7 +285,7 @@ def test_a_frame_the_keyframe_sees_little_of_is_measured_from_the_last_good_fram
     run = track_frames(mer17)
     assert run.status[12] == FrameStatus.LOST and run.status[13] == FrameStatus.REINIT
     assert run.reason[13].endswith("the gap re-solved from frame 11"), run.reason[13]
-    assert _keyframe_tilts(run, mer17)[13] < 0.01
+    assert keyframe_tilt_errors(run, mer17)[13] < 0.01
     _, truth = read_tum(mer17 / "groundtruth.tum")
     truth = se3_inv(truth[0]) @ truth
     path = np.sum(np.linalg.norm(np.diff(truth[:, :3, 3], axis=0), axis=1))
