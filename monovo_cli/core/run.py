@@ -1,6 +1,6 @@
 """One tracking run's result in memory: what every frame and keyframe left.
 
-:class:`RunRecorder` collects the :class:`~monovo_cli.core.odometry.FrameResult` of each frame
+:class:`RunRecorder` collects the numbers of each frame's :class:`~monovo_cli.core.odometry.FrameResult`
 and every keyframe anchored as the tracking loop yields them; :meth:`RunRecorder.result`
 freezes them into a :class:`TrackRun`, the one value that the products, the plots, the
 evaluation and batch's summary read (no layer reads back a file the run wrote).
@@ -116,36 +116,76 @@ class TrackRun:
         return self.frames / self.seconds if self.seconds > 0 else float("inf")
 
 
+#: The numeric columns a :class:`RunRecorder` keeps per frame: (dtype, shape of one row).
+_COLUMNS = {
+    "index": (np.int64, ()),
+    "timestamp": (np.float64, ()),
+    "world_from_cam": (np.float64, (4, 4)),
+    "prev_from_cur": (np.float64, (4, 4)),
+    "msd": (np.float64, ()),
+    "iterations": (np.int64, ()),
+    "points": (np.int64, ()),
+    "std": (np.float64, (6,)),
+    "covariance": (np.float64, (6, 6)),
+}
+_BLOCK = 512  # frames per block of columns (0.33 MB)
+
+
 class RunRecorder:
     """Collects a run as the tracking loop yields it: :meth:`add` every frame's result in
-    order, :meth:`add_keyframe` every keyframe anchored or rebuilt in place."""
+    order, :meth:`add_keyframe` every keyframe anchored or rebuilt in place.
+
+    A frame's numbers go into columns allocated a block of frames at a time, not a kept
+    object per frame: about 0.65 kB a frame, so a run's memory barely grows with its length
+    and a checkpoint pickles a few arrays.
+    """
 
     def __init__(self) -> None:
-        self._frames: list = []
+        self._n = 0
+        self._blocks: list[dict[str, np.ndarray]] = []
+        self._status: list[FrameStatus] = []
+        self._reason: list[str] = []
+        self._gaps: list[tuple[int, GapClosure]] = []
         self._keys: dict[int, KeyRecord] = {}
 
     def __len__(self) -> int:
-        return len(self._frames)
+        return self._n
 
     def add(self, res) -> None:
         """``res``: a :class:`~monovo_cli.core.odometry.FrameResult`."""
-        self._frames.append(res)
+        n = self._n % _BLOCK
+        if n == 0:
+            self._blocks.append({name: np.zeros((_BLOCK,) + shape, dtype)
+                                 for name, (dtype, shape) in _COLUMNS.items()})
+        for name, col in self._blocks[-1].items():
+            col[n] = getattr(res, name)
+        self._status.append(FrameStatus(res.status))
+        self._reason.append(res.reason)
+        if getattr(res, "gap", None) is not None:
+            self._gaps.append((res.index, res.gap))
+        self._n += 1
 
     def add_keyframe(self, key: Keyframe) -> None:
         self._keys[int(key.index)] = KeyRecord.of(key)
 
+    def _column(self, name: str) -> np.ndarray:
+        dtype, shape = _COLUMNS[name]
+        if not self._blocks:
+            return np.empty((0,) + shape, dtype)
+        return np.concatenate([b[name] for b in self._blocks])[:self._n]
+
     @property
     def index(self) -> list[int]:
-        return [r.index for r in self._frames]
+        return self._column("index").tolist()
 
     @property
     def timestamp(self) -> list[float]:
-        return [r.timestamp for r in self._frames]
+        return self._column("timestamp").tolist()
 
     @property
     def world_from_cam(self) -> np.ndarray:
         """(n, 4, 4) the poses of the frames added so far."""
-        return np.array([r.world_from_cam for r in self._frames])
+        return self._column("world_from_cam")
 
     @property
     def keyframes(self) -> tuple[KeyRecord, ...]:
@@ -154,29 +194,28 @@ class RunRecorder:
     @property
     def gaps(self) -> tuple[tuple[int, GapClosure], ...]:
         """``(frame index, GapClosure)`` of the frames added that closed lost ones."""
-        return tuple((r.index, r.gap) for r in self._frames if getattr(r, "gap", None) is not None)
+        return tuple(self._gaps)
 
     @property
     def last_status(self) -> FrameStatus | None:
-        return self._frames[-1].status if self._frames else None
+        return self._status[-1] if self._status else None
 
     def result(self, trajectory: np.ndarray | None = None, seconds: float = 0.0) -> TrackRun:
         """The :class:`TrackRun` of the frames added; ``trajectory`` (n, 4, 4) the poses to
         write (None: the poses as estimated)."""
-        f = self._frames
-        W = self.world_from_cam.reshape(-1, 4, 4)
+        W = self.world_from_cam
         return TrackRun(
-            index=np.array([r.index for r in f], dtype=np.int64),
-            timestamp=np.array([r.timestamp for r in f], dtype=float),
+            index=self._column("index"),
+            timestamp=self._column("timestamp"),
             world_from_cam=W,
-            prev_from_cur=np.array([r.prev_from_cur for r in f]).reshape(-1, 4, 4),
-            status=tuple(FrameStatus(r.status) for r in f),
-            reason=tuple(r.reason for r in f),
-            msd=np.array([r.msd for r in f], dtype=float),
-            iterations=np.array([r.iterations for r in f], dtype=np.int64),
-            points=np.array([r.points for r in f], dtype=np.int64),
-            std=np.array([r.std for r in f], dtype=float).reshape(-1, 6),
-            covariance=np.array([r.covariance for r in f], dtype=float).reshape(-1, 6, 6),
+            prev_from_cur=self._column("prev_from_cur"),
+            status=tuple(self._status),
+            reason=tuple(self._reason),
+            msd=self._column("msd"),
+            iterations=self._column("iterations"),
+            points=self._column("points"),
+            std=self._column("std"),
+            covariance=self._column("covariance"),
             keyframes=self.keyframes,
             trajectory=W if trajectory is None else np.asarray(trajectory, dtype=float),
             seconds=float(seconds), gaps=self.gaps)

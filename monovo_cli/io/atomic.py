@@ -11,7 +11,7 @@ import contextlib
 import hashlib
 import os
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextvars import ContextVar
 from dataclasses import dataclass
 from pathlib import Path
@@ -93,8 +93,23 @@ class DigestingStream:
             _record(self._path, self._size, self._hash.hexdigest())
 
 
-def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same directory + rename.
+class _HashingWriter:
+    """A binary file that hashes what is written to it (for :func:`atomic_write_with`)."""
+
+    def __init__(self, f: IO[bytes]) -> None:
+        self._f, self.hash, self.size = f, hashlib.sha256(), 0
+
+    def write(self, data) -> int:
+        self.hash.update(data)
+        n = self._f.write(data)
+        self.size += len(memoryview(data).cast("B"))
+        return n
+
+
+def atomic_write_with(path: Path, write: Callable[[IO[bytes]], object]) -> None:
+    """Write ``path`` through a temporary file in the same directory + rename, the bytes
+    given by ``write(f)`` to a binary file-like ``f`` (only its ``write`` method: a pickler
+    streams into it without the whole file ever being one bytes object in memory).
 
     No half-written file ever carries the final name; the file gets the mode a plain
     ``open()`` would give it.
@@ -107,17 +122,23 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
         raise OutputError(f"{path.parent}: cannot write here ({exc.strerror})") from None
     try:
         with os.fdopen(fd, "wb") as f:
-            f.write(data)
+            out = _HashingWriter(f)
+            write(out)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
-        _record(path, len(data), hashlib.sha256(data).hexdigest())
+        _record(path, out.size, out.hash.hexdigest())
     except BaseException:
         try:
             os.unlink(tmp)
         except OSError:
             pass
         raise
+
+
+def atomic_write_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically (:func:`atomic_write_with`)."""
+    atomic_write_with(path, lambda f: f.write(data))
 
 
 def atomic_write_text(path: Path, text: str) -> None:

@@ -18,11 +18,11 @@ from pathlib import Path
 from typing import Any
 
 from monovo_cli.errors import InputError, OutputError
-from monovo_cli.io.atomic import DigestingStream, atomic_write_bytes
+from monovo_cli.io.atomic import DigestingStream, atomic_write_with
 from monovo_cli.version import __version__
 
 CHECKPOINT_FILE = ".track-checkpoint.pkl"
-FORMAT = "monovo-checkpoint-1"
+FORMAT = "monovo-checkpoint-2"  # 2: the recorder keeps columns, not a row object per frame
 
 
 @dataclass(frozen=True)
@@ -49,9 +49,11 @@ def checkpoint_path(out_dir: Path) -> Path:
 
 def write_checkpoint(out_dir: Path, checkpoint: Checkpoint) -> None:
     """Replace ``out_dir``'s checkpoint with ``checkpoint``, atomically."""
-    data = pickle.dumps({"format": FORMAT, "monovo": __version__, "checkpoint": checkpoint},
-                        protocol=pickle.HIGHEST_PROTOCOL)
-    atomic_write_bytes(checkpoint_path(out_dir), data)
+    content = {"format": FORMAT, "monovo": __version__, "checkpoint": checkpoint}
+    # streamed into the file: the state is tens of MB, and a bytes object of it at every
+    # checkpoint is what made a long run's peak memory grow (docs/benchmarks.md "Memory")
+    atomic_write_with(checkpoint_path(out_dir),
+                      lambda f: pickle.dump(content, f, protocol=pickle.HIGHEST_PROTOCOL))
 
 
 def read_checkpoint(out_dir: Path) -> Checkpoint | None:
