@@ -245,7 +245,7 @@ class Odometry:
         self._sigma = difference_sigma(key.noise_sigma, image)
         # what unrelated images would give (the brightness fit free): the keyframe points'
         # intensity variance
-        self._chance_msd = float(np.var(key.levels[0].points.intensity))
+        self._chance_msd = key.levels[0].intensity_variance
         est, reason = None, ""
         if prior_motion is not None or self._state is OdometryState.TRACKING:
             motion = se3_inv(prior_motion) if prior_motion is not None else self._velocity
@@ -602,7 +602,7 @@ class Odometry:
         recovery = LostFrameRecovery(self.camera, options=self.options.features, mask=self.mask,
                                      region=self.region)
         recovery.anchored(good.image)
-        chance, self._chance_msd = self._chance_msd, float(np.var(ref.levels[0].points.intensity))
+        chance, self._chance_msd = self._chance_msd, ref.levels[0].intensity_variance
         try:
             est = estimate_motion(ref.levels, pyr, predicted, options=self.options.estimator,
                                   gain=gain, bias=bias)

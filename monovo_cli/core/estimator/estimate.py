@@ -156,6 +156,12 @@ class KeyLevel:
         return K, np.linalg.inv(K)
 
     @cached_property
+    def intensity_variance(self) -> float:
+        """The variance of the points' intensities (grey levels^2): the mean squared difference
+        an unrelated image would leave with the brightness fit free (once per level)."""
+        return float(np.var(self.points.intensity))
+
+    @cached_property
     def grid3(self) -> np.ndarray:
         """The points ``X`` packed as a (rows, GRID_COLUMNS, 3) float32 array (the layout of
         ``grid``; the padding is zero)."""
