@@ -256,6 +256,13 @@ class Odometry:
             reason = self._failure(est, key)
         else:  # standing start, or recovering: no prediction to trust
             guess = self._cur_from_key_prev
+            if self._state is OdometryState.STARTING:
+                # a standing start first tries "no motion yet" from the top of the pyramid,
+                # as a tracked frame tries its prediction; the capture search runs only if
+                # that fails the checks (it cost 0.1 s, once per sequence)
+                est = estimate_motion(key.levels, pyr, guess, options=self.options.estimator,
+                                      gain=self._gain, bias=self._bias)
+                reason = self._failure(est, key)
         if est is None or reason:
             est, reason = self._capture(index, key, image, pyr, guess, est, reason)
         if not reason:

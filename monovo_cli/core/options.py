@@ -109,7 +109,8 @@ class TrackOptions:
     times the first measured against the keyframe (appearance changes, a surface that is not
     quite the plane) -- before the loss checks fire; a region the robust weights reject (a
     shadow fixed in the image) does not count.
-    Capture range: after a failed prediction, at the standing start and while recovering,
+    Capture range: after a failed prediction, at a standing start whose "no motion yet"
+    fails the checks and while recovering,
     the rotation search and (``feature_hypothesis``) an ORB + homography motion over the
     known plane (:mod:`monovo_cli.core.recovery.features`) each start the direct estimator; the best
     fit wins. ``features`` are that hypothesis' settings, which also bridge lost frames
