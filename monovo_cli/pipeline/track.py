@@ -274,7 +274,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                         cov_writer.write(res.index, res.covariance)
                     if res.reason:
                         log.info("frame %d %s: %s", res.index, res.status, res.reason)
-                if checkpoint_every and tracking.done % checkpoint_every == 0:
+                if checkpoint_every and tracking.done % checkpoint_every == 0 and \
+                        tracking.done < len(frames):  # (after the last frame: the end's files)
                     write_trajectory(tracking.trajectory())
                     if out_dir is not None:
                         write_checkpoint_now()

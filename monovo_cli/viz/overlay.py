@@ -188,11 +188,16 @@ def visible_fraction(camera: PinholeCamera, poly_cam: np.ndarray, near: float) -
     """The share (0..1) of the image area of the polygon ``poly_cam`` (N, 3) m (camera
     coordinates, in front of the near plane) that falls inside the image; 0 when none of it
     is in front of the camera."""
+    poly_cam = np.asarray(poly_cam, dtype=float)
+    frustum = frustum_halfspaces(camera, near, margin=0.0)  # (the near plane's row first)
+    if len(poly_cam) >= 3 and np.all(poly_cam @ frustum[:, :3].T + frustum[:, 3] >= 0):
+        # every vertex in view (most frames of a drive): clipping would keep the polygon
+        return 1.0 if polygon_area(camera.project(poly_cam)) > 0.0 else 0.0
     front = clip_polygon(poly_cam, np.array([[0.0, 0.0, 1.0, -near]]))
     if len(front) < 3:
         return 0.0
     whole = polygon_area(camera.project(front))
-    inside = clip_polygon(front, frustum_halfspaces(camera, near, margin=0.0))
+    inside = clip_polygon(front, frustum)
     if whole <= 0.0 or len(inside) < 3:
         return 0.0
     return min(1.0, polygon_area(camera.project(inside)) / whole)
