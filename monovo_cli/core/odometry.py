@@ -35,6 +35,7 @@ import numpy as np
 
 from monovo_cli.core.estimator.estimate import Estimate, coarse_search, estimate_motion
 from monovo_cli.core.estimator.robust import inlier_fraction
+from monovo_cli.core.estimator.split import split_half_fits
 from monovo_cli.core.estimator.terrain_grid import (
     TerrainGrid,
     refine_pose_and_terrain_grid,
@@ -263,7 +264,8 @@ class Odometry:
                 est = estimate_motion(key.levels, pyr, guess, options=self.options.estimator,
                                       gain=self._gain, bias=self._bias)
                 reason = self._failure(est, key)
-        if est is None or reason:
+        captured = est is None or bool(reason)
+        if captured:
             est, reason = self._capture(index, key, image, pyr, guess, est, reason)
         if not reason:
             reason = self._step_too_large(orthonormalize(est.cur_from_key))
@@ -279,7 +281,7 @@ class Odometry:
             closer = self._resolve_gap(index, image, pyr)
             if closer is not None and closer[1].points > 2 * est.points:
                 return self._reinit(index, timestamp, image, pyr, "", resolved=closer)
-        return self._accept(index, timestamp, image, pyr, est)
+        return self._accept(index, timestamp, image, pyr, est, captured=captured)
 
     def _capture(self, index: int, key: Keyframe, image: np.ndarray, pyr: list[np.ndarray],
                  guess: np.ndarray, est: Estimate | None, reason: str, *,
@@ -332,7 +334,9 @@ class Odometry:
 
     # -- outcomes ---------------------------------------------------------------------
     def _accept(self, index: int, timestamp: float, image: np.ndarray, pyr: list[np.ndarray],
-                est: Estimate) -> FrameResult:
+                est: Estimate, *, captured: bool = False) -> FrameResult:
+        """Record ``est`` (``captured``: it came from the capture's starts, not from the
+        prediction: its split-half spread joins its covariance, ``_split_spread``)."""
         closing = None  # the lost frames before this one: what the prediction would say here
         if self._lost_run and self._good is not None:
             predicted = self._predicted
@@ -342,6 +346,7 @@ class Odometry:
         if self._plane.wants_test(self._key, index):
             est = self._settle_plane(index, pyr, est)
         key = self._key
+        spread = self._split_spread(key, pyr, est) if captured else []
         status = FrameStatus.OK
         recovering = self._state is OdometryState.RECOVERING
         reanchor = recovering or self._needs_reanchor(est, key, orthonormalize(est.cur_from_key))
@@ -375,6 +380,8 @@ class Odometry:
             jump = _motion_change(prev_from_cur, se3_inv(self._world_from_prev)
                                   @ key.world_from_key @ se3_inv(orthonormalize(tracked.cur_from_key)))
             cov = cov + np.outer(jump, jump)
+        for half, _ in spread:  # a captured frame's model error, as its halves disagree
+            cov = cov + np.outer(half, half)
         if self._gap_variance.any():  # the previous pose was only predicted: its error is ours
             cov = cov + _from_predicted(self._gap_variance, prev_from_cur)
             self._gap_variance = np.zeros(6)
@@ -398,6 +405,7 @@ class Odometry:
         if reanchor and self._reanchor(index, image, pyr, world_from_cur, plane_cur, plane_cov,
                                        None if terrain_grid is None else (terrain_grid, cur_from_key), link):
             status = FrameStatus.REANCHORED
+            self._plane.anchored_captured(plane_cur, [w for _, w in spread])
         elif not recovering:  # (a recovering tracker whose new keyframe failed stays so)
             self._state = OdometryState.TRACKING
         return FrameResult(index, timestamp, world_from_cur, prev_from_cur, est.msd,
@@ -567,6 +575,21 @@ class Odometry:
         self._key_image, self._key_msd = image, None
         self._recovery.anchored(image)
         return True
+
+    def _split_spread(self, key: Keyframe, pyr: list[np.ndarray], est: Estimate
+                      ) -> list[tuple[np.ndarray, np.ndarray]]:
+        """Per split of ``est``'s points whose halves both converged
+        (:func:`~monovo_cli.core.estimator.split.split_half_fits`), the difference between
+        the halves' motions (6,) (m, rad; as motion.csv's) and between their rotations in
+        the current camera (3,) (rad): the model error of a frame captured across a wide
+        change of view, which the noise-only covariance does not count. The whole
+        difference, not half of it: that error is shared by the halves, not averaged away."""
+        out = []
+        for a, b in split_half_fits(key.levels[0], pyr[0], est, self.options.estimator):
+            a, b = orthonormalize(a), orthonormalize(b)
+            ma, mb = (se3_inv(self._world_from_prev) @ key.world_from_key @ se3_inv(c) for c in (a, b))
+            out.append((_motion_change(ma, mb), so3_log(a[:3, :3] @ b[:3, :3].T)))
+        return out
 
     def _carried_plane(self, key: Keyframe, cur_from_key: np.ndarray,
                        twist: np.ndarray | None = None, sensitivity: np.ndarray | None = None

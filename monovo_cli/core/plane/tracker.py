@@ -71,8 +71,8 @@ from monovo_cli.core.plane.fit import refine_plane_and_motion
 from monovo_cli.core.plane.motion_covariance import PlaneCovarianceCalibration
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
-from monovo_cli.geometry.lie import orthonormalize
-from monovo_cli.geometry.plane import Plane
+from monovo_cli.geometry.lie import orthonormalize, skew
+from monovo_cli.geometry.plane import Plane, tangent_basis
 
 log = logging.getLogger(__name__)
 
@@ -157,6 +157,9 @@ class PlaneTracker:
         #: (2, 2) rad^2: the images contradicted frame 0's tilt given as exact by this much
         #: (squared, per angle); one of the two is that far off, for the whole drive
         self._disputed_tilt: np.ndarray | None = None
+        #: (2, 2) rad^2: this keyframe was anchored on a captured frame whose split-half
+        #: fits disagreed on its rotation this much (:meth:`anchored_captured`)
+        self._spread_tilt: np.ndarray | None = None
         self.consistency = PlaneCovarianceCalibration()
 
     @property
@@ -167,11 +170,13 @@ class PlaneTracker:
         uncertain by the contradiction itself: the images and init.yaml disagreed by that
         much, one of them is that far off, and the tool cannot tell which."""
         P = self.consistency.reported(self.covariance)
-        if self._model_variance or self._disputed_tilt is not None:
+        if self._model_variance or self._disputed_tilt is not None or \
+                self._spread_tilt is not None:
             P = P.copy()
             P[0, 0] += self._model_variance
-            if self._disputed_tilt is not None:
-                P[1:, 1:] += self._disputed_tilt
+            for extra in (self._disputed_tilt, self._spread_tilt):
+                if extra is not None:
+                    P[1:, 1:] += extra
         return P
 
     @property
@@ -212,7 +217,20 @@ class PlaneTracker:
     def anchored(self, covariance: np.ndarray | None = None) -> None:
         """A new keyframe was anchored with a plane of ``covariance`` (None: the prior's)."""
         self._model_variance = 0.0
+        self._spread_tilt = None
         self.covariance = self.mounting.covariance if covariance is None else covariance
+
+    def anchored_captured(self, plane: Plane, rotations: list[np.ndarray]) -> None:
+        """The keyframe just anchored (``plane`` in its camera) stands on a captured frame
+        whose split-half fits disagreed by ``rotations`` (each (3,) rad, in that camera):
+        its tilt is that uncertain too, for reporting (the plane carried from a rotation
+        that far off is tilted by it, and the next rows measured against it inherit that;
+        docs/algorithm.md section 8). The next keyframe's anchoring clears it."""
+        if not rotations:
+            return
+        n = plane.normal
+        J = -tangent_basis(n).T @ skew(n)  # d tilt / d rotation of the camera
+        self._spread_tilt = sum(J @ np.outer(w, w) @ J.T for w in rotations)
 
     def test(self, index: int, key: Keyframe, key_image: np.ndarray, pyramid: list[np.ndarray],
              est: Estimate, camera: PinholeCamera, region: tuple[int, int, int, int],
