@@ -35,7 +35,7 @@ import numpy as np
 
 from monovo_cli.core.estimator.estimate import Estimate, coarse_search, estimate_motion
 from monovo_cli.core.estimator.robust import inlier_fraction
-from monovo_cli.core.estimator.split import split_half_fits
+from monovo_cli.core.estimator.split import SPLIT_POINTS, SPLIT_POINTS_REANCHOR, split_half_fits
 from monovo_cli.core.estimator.terrain_grid import (
     TerrainGrid,
     refine_pose_and_terrain_grid,
@@ -336,7 +336,8 @@ class Odometry:
     def _accept(self, index: int, timestamp: float, image: np.ndarray, pyr: list[np.ndarray],
                 est: Estimate, *, captured: bool = False) -> FrameResult:
         """Record ``est`` (``captured``: it came from the capture's starts, not from the
-        prediction: its split-half spread joins its covariance, ``_split_spread``)."""
+        prediction). A captured frame's, and a re-anchoring frame's, split-half spread joins
+        its covariance (``_split_spread``)."""
         closing = None  # the lost frames before this one: what the prediction would say here
         if self._lost_run and self._good is not None:
             predicted = self._predicted
@@ -346,10 +347,13 @@ class Odometry:
         if self._plane.wants_test(self._key, index):
             est = self._settle_plane(index, pyr, est)
         key = self._key
-        spread = self._split_spread(key, pyr, est) if captured else []
         status = FrameStatus.OK
         recovering = self._state is OdometryState.RECOVERING
         reanchor = recovering or self._needs_reanchor(est, key, orthonormalize(est.cur_from_key))
+        # a frame the prediction did not reach, or one far enough from the keyframe to anchor
+        # the next: the change of view is largest there, and so is the plane model's error
+        spread = self._split_spread(key, pyr, est, SPLIT_POINTS if captured else SPLIT_POINTS_REANCHOR) \
+            if captured or reanchor else []
         terrain_grid, tracked = None, est
         if reanchor and key.index != index and self.options.terrain_grid:
             est, terrain_grid, lifted = refine_pose_and_terrain_grid(key.levels[0], key.plane, pyr[0], est,
@@ -576,8 +580,8 @@ class Odometry:
         self._recovery.anchored(image)
         return True
 
-    def _split_spread(self, key: Keyframe, pyr: list[np.ndarray], est: Estimate
-                      ) -> list[tuple[np.ndarray, np.ndarray]]:
+    def _split_spread(self, key: Keyframe, pyr: list[np.ndarray], est: Estimate,
+                      max_points: int) -> list[tuple[np.ndarray, np.ndarray]]:
         """Per split of ``est``'s points whose halves both converged
         (:func:`~monovo_cli.core.estimator.split.split_half_fits`), the difference between
         the halves' motions (6,) (m, rad; as motion.csv's) and between their rotations in
@@ -585,7 +589,7 @@ class Odometry:
         change of view, which the noise-only covariance does not count. The whole
         difference, not half of it: that error is shared by the halves, not averaged away."""
         out = []
-        for a, b in split_half_fits(key.levels[0], pyr[0], est, self.options.estimator):
+        for a, b in split_half_fits(key.levels[0], pyr[0], est, self.options.estimator, max_points):
             a, b = orthonormalize(a), orthonormalize(b)
             ma, mb = (se3_inv(self._world_from_prev) @ key.world_from_key @ se3_inv(c) for c in (a, b))
             out.append((_motion_change(ma, mb), so3_log(a[:3, :3] @ b[:3, :3].T)))
