@@ -248,22 +248,19 @@ class Odometry:
         # intensity variance
         self._chance_msd = key.levels[0].intensity_variance
         est, reason = None, ""
-        if prior_motion is not None or self._state is OdometryState.TRACKING:
+        guess = self._cur_from_key_prev
+        predicted = prior_motion is not None or self._state is OdometryState.TRACKING
+        if predicted:
             motion = se3_inv(prior_motion) if prior_motion is not None else self._velocity
-            guess = motion @ self._cur_from_key_prev
+            guess = motion @ guess
+        # A prediction starts the estimator at pyramid level predicted_top_level; a standing
+        # start tries "no motion yet" from the top (the capture search, 0.1 s, runs only if
+        # that fails the checks); a recovering tracker trusts no start but the capture's.
+        if predicted or self._state is OdometryState.STARTING:
             est = estimate_motion(key.levels, pyr, guess, options=self.options.estimator,
                                   gain=self._gain, bias=self._bias,
-                                  first_level=self.options.predicted_top_level)
+                                  first_level=self.options.predicted_top_level if predicted else None)
             reason = self._failure(est, key)
-        else:  # standing start, or recovering: no prediction to trust
-            guess = self._cur_from_key_prev
-            if self._state is OdometryState.STARTING:
-                # a standing start first tries "no motion yet" from the top of the pyramid,
-                # as a tracked frame tries its prediction; the capture search runs only if
-                # that fails the checks (it cost 0.1 s, once per sequence)
-                est = estimate_motion(key.levels, pyr, guess, options=self.options.estimator,
-                                      gain=self._gain, bias=self._bias)
-                reason = self._failure(est, key)
         captured = est is None or bool(reason)
         if captured:
             est, reason = self._capture(index, key, image, pyr, guess, est, reason)
@@ -381,8 +378,7 @@ class Odometry:
                                         self._plane.reported_covariance,
                                         self._cur_from_key_prev, prev_from_cur)
         if terrain_grid is not None:  # the correction the terrain grid made is this motion's model error
-            jump = _motion_change(prev_from_cur, se3_inv(self._world_from_prev)
-                                  @ key.world_from_key @ se3_inv(orthonormalize(tracked.cur_from_key)))
+            jump = _motion_change(prev_from_cur, self._motion_to(key, orthonormalize(tracked.cur_from_key)))
             cov = cov + np.outer(jump, jump)
         for half, _ in spread:  # a captured frame's model error, as its halves disagree
             cov = cov + np.outer(half, half)
@@ -591,9 +587,14 @@ class Odometry:
         out = []
         for a, b in split_half_fits(key.levels[0], pyr[0], est, self.options.estimator, max_points):
             a, b = orthonormalize(a), orthonormalize(b)
-            ma, mb = (se3_inv(self._world_from_prev) @ key.world_from_key @ se3_inv(c) for c in (a, b))
-            out.append((_motion_change(ma, mb), so3_log(a[:3, :3] @ b[:3, :3].T)))
+            out.append((_motion_change(self._motion_to(key, a), self._motion_to(key, b)),
+                        so3_log(a[:3, :3] @ b[:3, :3].T)))
         return out
+
+    def _motion_to(self, key: Keyframe, cur_from_key: np.ndarray) -> np.ndarray:
+        """The motion (4x4, T_{k-1}_k) from the previous pose to the pose ``cur_from_key``
+        (4x4, orthonormal) against ``key``: an alternative fit's, beside the frame's own."""
+        return se3_inv(self._world_from_prev) @ key.world_from_key @ se3_inv(cur_from_key)
 
     def _carried_plane(self, key: Keyframe, cur_from_key: np.ndarray,
                        twist: np.ndarray | None = None, sensitivity: np.ndarray | None = None

@@ -102,7 +102,7 @@ class _HashingWriter:
     def write(self, data) -> int:
         self.hash.update(data)
         n = self._f.write(data)
-        self.size += len(memoryview(data).cast("B"))
+        self.size += memoryview(data).nbytes
         return n
 
 
