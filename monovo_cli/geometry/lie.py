@@ -49,17 +49,17 @@ def so3_log(R: np.ndarray) -> np.ndarray:
     v = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
     if theta < 1e-6:
         return 0.5 * v * (1.0 + theta * theta / 6.0)
-    if np.pi - theta > 1e-4:
+    if np.pi - theta > 1e-2:
         return v * (theta / (2.0 * np.sin(theta)))
-    # Near pi: take the axis from the symmetric part, sign from v.
-    B = 0.5 * (R + np.eye(3))
-    axis = np.sqrt(np.clip(np.diag(B), 0.0, None))
-    i = int(np.argmax(axis))
-    axis = B[i] / axis[i]
-    axis /= np.linalg.norm(axis)
+    # Near pi v ~ 2 sin(theta) loses its digits: the axis from the symmetric part,
+    # (R + R^T) / 2 - cos(theta) I = (1 - cos(theta)) a a^T, its sign from v, and the
+    # angle from both sin and cos.
+    B = 0.5 * (R + R.T) - cos_t * np.eye(3)
+    i = int(np.argmax(np.diag(B)))
+    axis = B[i] / np.linalg.norm(B[i])
     if axis @ v < 0:
         axis = -axis
-    return axis * theta
+    return axis * np.arctan2(0.5 * abs(axis @ v), cos_t)
 
 
 def _so3_left_jacobian(w: np.ndarray) -> np.ndarray:
