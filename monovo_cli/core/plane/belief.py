@@ -308,6 +308,17 @@ def tilt_std_deg(covariance: np.ndarray) -> float:
 CONSISTENT_CHI2 = 13.8  # chi-square of 2 tilts at 99.9 %: below it the images confirm a plane
 
 
+def measured_tilt(measured: PlaneBelief, plane: Plane) -> tuple[np.ndarray, np.ndarray] | None:
+    """The tilt angles (2,) rad the normal ``measured`` gives in the chart of ``plane``, and
+    their covariance (2, 2); None where the measurement holds no tilt information."""
+    L, eta = measured.in_chart(plane)
+    try:
+        C = np.linalg.inv(L[1:, 1:])
+    except np.linalg.LinAlgError:
+        return None
+    return C @ eta[1:], C
+
+
 def tilt_chi2(measured: PlaneBelief, plane: Plane) -> float:
     """Chi-square (2 dof) of the tilt that ``measured`` gives against ``plane``'s: how far the
     measurement's mean lies from ``plane`` in units of its own information."""

@@ -20,9 +20,16 @@ P is the filter's belief, whose widths are set for the MAP's weights rather than
 :class:`PlaneCovarianceCalibration` calibrates it for reporting from how the keyframe planes agree at
 the re-anchors (covariance matching on the distance; the tilt's model error, scaled by
 ``1 / (2 (1 - TILT_PERSISTENCE))`` because consecutive keyframe planes share most of it).
-Before the first re-anchor a plane the images did not confirm as exact gets the filter's
-tilt process noise. Why these choices, and how honest the result is on the terrain drives:
-the docs section above.
+At every re-anchor the images' own normal (the joint refinement's) is held against the
+carried plane: what their difference holds beyond both covariances is how far the ground the
+camera sees departs from the plane carried, which no agreement between keyframe planes shows
+(a plane carried from init.yaml's exact one keeps init.yaml's tilt, while on a slope with a
+swell the ground seen sits 0.5-0.7 deg off the wheels' plane). Its size, the same on both
+tilts, is added to every keyframe plane's tilt, one taken as exact included. Before the first
+re-anchor a plane the images did not confirm as exact gets the filter's tilt process noise
+(:class:`~monovo_cli.core.plane.tracker.PlaneTracker` adds it to frame 0's exact one where the
+images stop confirming it). Why these choices, and how honest the result is on the terrain
+drives: the docs section above.
 """
 
 from __future__ import annotations
@@ -36,6 +43,7 @@ from monovo_cli.core.estimator.estimate import Estimate, KeyLevel
 from monovo_cli.core.plane.belief import (
     EXACT_STD,
     PlaneBelief,
+    measured_tilt,
     to_chart,
 )
 from monovo_cli.geometry.lie import adjoint, output_covariance
@@ -147,20 +155,23 @@ class PlaneCovarianceCalibration:
     median of ``nu_d^2 / predicted`` over CHI2_1_MEDIAN scales the distance variance.
     Tilt: what the outer product of the carried and new planes' tilt difference holds beyond
     their two covariances is the plane model's error; its element-wise median over
-    CHI2_1_MEDIAN, times ``1 / (2 (1 - TILT_PERSISTENCE))``, is added to the tilt block.
+    CHI2_1_MEDIAN, times ``1 / (2 (1 - TILT_PERSISTENCE))``, is added to the tilt block. The
+    same of the images' measured normal against the carried plane, its trace shared by the
+    two tilts, is the ground seen's departure from the plane, added too.
     """
 
     def __init__(self) -> None:
         self._distance_nis: deque[float] = deque(maxlen=CONSISTENCY_WINDOW)
         self._tilt_excess: deque[np.ndarray] = deque(maxlen=CONSISTENCY_WINDOW)
-        self._calibration: tuple[float, np.ndarray] | None = None  # (distance factor, Q)
+        self._seen_excess: deque[np.ndarray] = deque(maxlen=CONSISTENCY_WINDOW)
+        self._calibration: tuple[float, np.ndarray, np.ndarray | None] | None = None  # g, Q, seen
 
     def reanchored(self, carried: PlaneBelief, new: PlaneBelief, prior: PlaneBelief,
-                   distance_change: float) -> None:
+                   distance_change: float, measured: PlaneBelief | None = None) -> None:
         """One re-anchor: the old keyframe's plane ``carried`` to the new keyframe
         (:func:`~monovo_cli.core.plane.belief.propagated_plane`, before process noise), whose
         plane is ``new`` (the MAP); ``prior`` the mounting prior, ``distance_change`` (m) the
-        distance's process noise."""
+        distance's process noise; ``measured`` the images' normal there (None: not measured)."""
         try:
             Pc, Pn, Pp = carried.covariance, new.covariance, prior.covariance
         except np.linalg.LinAlgError:
@@ -174,27 +185,43 @@ class PlaneCovarianceCalibration:
         excess = np.outer(nu_t, nu_t) - Pc[1:, 1:] - Pn[1:, 1:]
         if np.all(np.isfinite(excess)):
             self._tilt_excess.append(excess)
+        got = None if measured is None else measured_tilt(measured, carried.plane)
+        if got is not None:
+            seen = np.outer(got[0], got[0]) - got[1] - Pc[1:, 1:]
+            if np.all(np.isfinite(seen)):
+                self._seen_excess.append(seen)
 
     def reported(self, covariance: np.ndarray) -> np.ndarray:
         """``covariance`` (3, 3), the keyframe plane's in its chart (m, rad), calibrated: the
-        distance's row and column scaled, the tilt's model error added (before any re-anchor:
-        TILT_MODEL_ERROR_DEG on each tilt). A plane taken as exact (tilt std within 10 EXACT_STD)
-        comes back unchanged."""
+        distance's row and column scaled; added to the tilts, the plane model's error and the
+        ground seen's departure from the carried plane (class docstring), or before any
+        re-anchor TILT_MODEL_ERROR_DEG on each. A plane taken as exact (tilt std within 10
+        EXACT_STD) gets only the departure."""
         if self._calibration is None:  # (worked out once per re-anchor)
             g, Q = 1.0, np.eye(2) * math.radians(TILT_MODEL_ERROR_DEG) ** 2
             if self._distance_nis:
                 g = math.sqrt(float(np.median(self._distance_nis)) / CHI2_1_MEDIAN)
             if self._tilt_excess:
-                Q = np.median(np.array(self._tilt_excess), axis=0) / CHI2_1_MEDIAN
-                Q = Q / (2.0 * (1.0 - TILT_PERSISTENCE))
-                lam, V = np.linalg.eigh(0.5 * (Q + Q.T))
-                Q = (V * np.clip(lam, 0.0, None)) @ V.T
-            self._calibration = g, Q
-        g, Q = self._calibration
+                Q = _median_excess(self._tilt_excess) / (2.0 * (1.0 - TILT_PERSISTENCE))
+            seen = None
+            if self._seen_excess:  # its size, not its direction (which turns along a drive)
+                seen = np.eye(2) * 0.5 * np.trace(_median_excess(self._seen_excess))
+            self._calibration = g, Q, seen
+        g, Q, seen = self._calibration
         P = np.array(covariance, dtype=float)
-        if np.max(np.diag(P)[1:]) <= (10 * EXACT_STD) ** 2:  # a plane taken as exact stays so
+        if np.max(np.diag(P)[1:]) <= (10 * EXACT_STD) ** 2:  # a plane taken as exact
+            if seen is not None:
+                P[1:, 1:] += seen
             return P
         P[0, :] *= g
         P[:, 0] *= g
-        P[1:, 1:] += Q
+        P[1:, 1:] += Q if seen is None else Q + seen
         return P
+
+
+def _median_excess(excess) -> np.ndarray:
+    """(2, 2) the element-wise median of tilt excesses (outer products of a difference less
+    its predicted covariance) over CHI2_1_MEDIAN, its negative part dropped."""
+    Q = np.median(np.array(excess), axis=0) / CHI2_1_MEDIAN
+    lam, V = np.linalg.eigh(0.5 * (Q + Q.T))
+    return (V * np.clip(lam, 0.0, None)) @ V.T

@@ -1,6 +1,9 @@
 """The keyframe plane along a drive: its covariance, its test on the first frames, and the
 plane of every new keyframe (the tracker's side of :mod:`monovo_cli.core.plane.belief`).
 
+Long module: the plane's belief, its tests against the images and what the report adds to
+it are one state, read and changed together by every frame.
+
 What init.yaml says of the ground is a :class:`Mounting`. By default its plane is frame 0's
 ground, exact (the paper's known initial pose; the drive's scale comes from it), and the
 mounting prior is centred on a *latent mean mount*: the rover's long-run distance and tilt
@@ -26,7 +29,10 @@ frame 0's images confirm the carried distance keeps frame 0's
 measured from the first frames whatever its uncertainty (:attr:`PlaneTracker.initial_tilt`):
 a contradiction is reported (logged, kept in run.yaml) and corrects the tilt, a tilt given as
 exact then counting with the prior's width; the distance is kept, and with
-``keep_initial_tilt`` so is the tilt. At a re-anchor, :meth:`PlaneTracker.successor` gives
+``keep_initial_tilt`` so is the tilt. A tilt given as exact that the images agreed with is
+asked again on frames 2, 4, 8, ... until the first re-anchor, for the report only: from the
+first whose images do not confirm it, every tilt carries the plane model's error. At a
+re-anchor, :meth:`PlaneTracker.successor` gives
 the new keyframe's plane: the MAP of the plane carried by the motion, the normal measured
 from the two images and the mounting prior. docs/algorithm.md section 4 gives the reasons and
 thresholds.
@@ -57,6 +63,7 @@ from monovo_cli.core.plane.belief import (
     exact_covariance,
     fuse,
     keyframe_plane,
+    measured_tilt,
     measured_tilt_std_deg,
     mounting_prior,
     process_noise,
@@ -68,7 +75,7 @@ from monovo_cli.core.plane.belief import (
     transported,
 )
 from monovo_cli.core.plane.fit import refine_plane_and_motion
-from monovo_cli.core.plane.motion_covariance import PlaneCovarianceCalibration
+from monovo_cli.core.plane.motion_covariance import TILT_MODEL_ERROR_DEG, PlaneCovarianceCalibration
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import orthonormalize, skew
@@ -77,6 +84,7 @@ from monovo_cli.geometry.plane import Plane, tangent_basis
 log = logging.getLogger(__name__)
 
 TILT_CHECK_FRAMES = 10  # frames of keyframe 0 on which init.yaml's tilt is measured at most
+UNCONFIRMED_CHI2 = 4.61  # chi-square of 2 tilts at 90 %: from it the images do not confirm a tilt
 
 
 @dataclass(frozen=True)
@@ -157,6 +165,12 @@ class PlaneTracker:
         #: (2, 2) rad^2: the images contradicted frame 0's tilt given as exact by this much
         #: (squared, per angle); one of the two is that far off, for the whole drive
         self._disputed_tilt: np.ndarray | None = None
+        #: (2, 2) rad^2: the images did not confirm frame 0's tilt given as exact on some
+        #: frame before the first re-anchor (chi-square from UNCONFIRMED_CHI2 up, below
+        #: CONSISTENT_CHI2 where it is the verdict): the ground seen is not that plane, and
+        #: every keyframe's tilt, carried from it, keeps the plane model's error, for the
+        #: whole drive
+        self._unconfirmed_tilt: np.ndarray | None = None
         #: (2, 2) rad^2: this keyframe was anchored on a captured frame whose split-half
         #: fits disagreed on its rotation this much (:meth:`anchored_captured`)
         self._spread_tilt: np.ndarray | None = None
@@ -170,13 +184,13 @@ class PlaneTracker:
         uncertain by the contradiction itself: the images and init.yaml disagreed by that
         much, one of them is that far off, and the tool cannot tell which."""
         P = self.consistency.reported(self.covariance)
-        if self._model_variance or self._disputed_tilt is not None or \
-                self._spread_tilt is not None:
+        extras = [e for e in (self._disputed_tilt, self._unconfirmed_tilt, self._spread_tilt)
+                  if e is not None]
+        if self._model_variance or extras:
             P = P.copy()
             P[0, 0] += self._model_variance
-            for extra in (self._disputed_tilt, self._spread_tilt):
-                if extra is not None:
-                    P[1:, 1:] += extra
+            for extra in extras:
+                P[1:, 1:] += extra
         return P
 
     @property
@@ -212,7 +226,15 @@ class PlaneTracker:
         if key.index == index:
             return False
         first = key.index == 0 and self.initial_tilt is None and self._tilt_checks < TILT_CHECK_FRAMES
-        return first or (self.unsettled and not (key.index == 0 and self.keep_initial_tilt))
+        watch = self._watching(key) and index & (index - 1) == 0  # frames 2, 4, 8, ...
+        return first or watch or (self.unsettled and not (key.index == 0 and self.keep_initial_tilt))
+
+    def _watching(self, key: Keyframe) -> bool:
+        """Frame 0's tilt, given as exact, agreed with the first frames' images, and until
+        the first re-anchor the images are asked again whether they still confirm it, each
+        time across twice the baseline (:meth:`wants_test`)."""
+        return (key.index == 0 and self.initial_tilt is not None and not self.initial_tilt.contradicts
+                and self._unconfirmed_tilt is None and not self.unsettled)
 
     def anchored(self, covariance: np.ndarray | None = None) -> None:
         """A new keyframe was anchored with a plane of ``covariance`` (None: the prior's)."""
@@ -254,17 +276,23 @@ class PlaneTracker:
         if fit.measured is None:
             return None
         chi2 = tilt_chi2(fit.measured, key.plane)
+        if self._watching(key):  # reporting only: the tilt is kept whatever they say
+            if chi2 >= UNCONFIRMED_CHI2:
+                self._unconfirmed_tilt = _model_error()
+            return None
         precise = measured_tilt_std_deg(fit.measured) < CONFIRMED_DEG
         keep = key.index == 0 and self.keep_initial_tilt
-        if (key.index == 0 and chi2 >= CONSISTENT_CHI2 and self._disputed_tilt is None
-                and tilt_std_deg(self.covariance) < self.sigmas[1]):
-            got = _tilt_from(fit.measured, key.plane)  # a tilt given as exact, contradicted
+        exact = key.index == 0 and tilt_std_deg(self.covariance) < self.sigmas[1]
+        if exact and chi2 >= CONSISTENT_CHI2 and self._disputed_tilt is None:
+            got = measured_tilt(fit.measured, key.plane)  # a tilt given as exact, contradicted
             if got is not None:
                 self._disputed_tilt = np.diag(got[0] ** 2)
         if key.index == 0 and self.initial_tilt is None:
             self._tilt_checks += 1
             if precise or chi2 >= CONSISTENT_CHI2 or self._tilt_checks >= TILT_CHECK_FRAMES:
                 self._record_initial_tilt(fit.measured, key.plane, chi2, index, not keep)
+                if exact and UNCONFIRMED_CHI2 <= chi2 < CONSISTENT_CHI2:
+                    self._unconfirmed_tilt = _model_error()
         if keep:
             return None
         if chi2 < CONSISTENT_CHI2:
@@ -295,7 +323,7 @@ class PlaneTracker:
         """The covariance of a later keyframe's ``plane`` the images confirm (``measured``):
         the measurement's tilt covariance and the tilt the two still differ by, the distance's
         as it was. (Frame 0's plane so confirmed is exact: the paper's known initial pose.)"""
-        got = _tilt_from(measured, plane)
+        got = measured_tilt(measured, plane)
         cov = np.array(self.covariance, dtype=float)
         if got is None:
             return cov
@@ -318,7 +346,7 @@ class PlaneTracker:
 
     def _record_initial_tilt(self, measured: PlaneBelief, plane: Plane, chi2: float,
                              frame: int, adopted: bool) -> None:
-        got = _tilt_from(measured, plane)
+        got = measured_tilt(measured, plane)
         if got is None:
             return
         x, s = np.degrees(got[0]), np.degrees(np.sqrt(np.clip(np.diag(got[1]), 0.0, None)))
@@ -385,16 +413,10 @@ class PlaneTracker:
                              latent_mount=self.latent_mount)
         except (ValueError, np.linalg.LinAlgError):
             return key.plane.in_frame(cur_from_key), None, fit.gain, fit.bias, None
-        self.consistency.reanchored(carried, belief, prior, distance_change)
+        self.consistency.reanchored(carried, belief, prior, distance_change, measured)
         return belief.plane, belief.covariance, fit.gain, fit.bias, link
 
 
-def _tilt_from(measured: PlaneBelief, plane: Plane) -> tuple[np.ndarray, np.ndarray] | None:
-    """The tilt angles (2,) rad the normal ``measured`` gives in the chart of ``plane``, and
-    their covariance (2, 2); None where the measurement holds no tilt information."""
-    L, eta = measured.in_chart(plane)
-    try:
-        C = np.linalg.inv(L[1:, 1:])
-    except np.linalg.LinAlgError:
-        return None
-    return C @ eta[1:], C
+def _model_error() -> np.ndarray:
+    """(2, 2) rad^2: the plane model's error on each tilt, TILT_MODEL_ERROR_DEG."""
+    return np.eye(2) * math.radians(TILT_MODEL_ERROR_DEG) ** 2
