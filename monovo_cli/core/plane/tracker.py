@@ -278,7 +278,7 @@ class PlaneTracker:
         chi2 = tilt_chi2(fit.measured, key.plane)
         if self._watching(key):  # reporting only: the tilt is kept whatever they say
             if chi2 >= UNCONFIRMED_CHI2:
-                self._unconfirmed_tilt = _model_error()
+                self._unconfirmed(index, chi2)
             return None
         precise = measured_tilt_std_deg(fit.measured) < CONFIRMED_DEG
         keep = key.index == 0 and self.keep_initial_tilt
@@ -292,7 +292,7 @@ class PlaneTracker:
             if precise or chi2 >= CONSISTENT_CHI2 or self._tilt_checks >= TILT_CHECK_FRAMES:
                 self._record_initial_tilt(fit.measured, key.plane, chi2, index, not keep)
                 if exact and UNCONFIRMED_CHI2 <= chi2 < CONSISTENT_CHI2:
-                    self._unconfirmed_tilt = _model_error()
+                    self._unconfirmed(index, chi2)
         if keep:
             return None
         if chi2 < CONSISTENT_CHI2:
@@ -318,6 +318,14 @@ class PlaneTracker:
         new = estimate_motion(new_key.levels, pyramid, est.cur_from_key, options=options.estimator,
                               gain=est.gain, bias=est.bias, first_level=options.predicted_top_level)
         return new_key, new, cov
+
+    def _unconfirmed(self, index: int, chi2: float) -> None:
+        """Frame ``index``'s images do not confirm frame 0's exact tilt (``chi2``): every
+        tilt carries the plane model's error from here (for reporting)."""
+        self._unconfirmed_tilt = np.eye(2) * math.radians(TILT_MODEL_ERROR_DEG) ** 2
+        log.info("frame %d's images do not confirm init.yaml's ground tilt (chi-square %.1f): "
+                 "the std columns carry a %.1f deg model error on it from here", index, chi2,
+                 TILT_MODEL_ERROR_DEG)
 
     def _confirmed(self, measured: PlaneBelief, plane: Plane) -> np.ndarray:
         """The covariance of a later keyframe's ``plane`` the images confirm (``measured``):
@@ -415,8 +423,3 @@ class PlaneTracker:
             return key.plane.in_frame(cur_from_key), None, fit.gain, fit.bias, None
         self.consistency.reanchored(carried, belief, prior, distance_change, measured)
         return belief.plane, belief.covariance, fit.gain, fit.bias, link
-
-
-def _model_error() -> np.ndarray:
-    """(2, 2) rad^2: the plane model's error on each tilt, TILT_MODEL_ERROR_DEG."""
-    return np.eye(2) * math.radians(TILT_MODEL_ERROR_DEG) ** 2
