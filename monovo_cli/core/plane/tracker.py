@@ -30,8 +30,9 @@ measured from the first frames whatever its uncertainty (:attr:`PlaneTracker.ini
 a contradiction is reported (logged, kept in run.yaml) and corrects the tilt, a tilt given as
 exact then counting with the prior's width; the distance is kept, and with
 ``keep_initial_tilt`` so is the tilt. A tilt given as exact that the images agreed with is
-asked again on frames 2, 4, 8, ... until the first re-anchor, for the report only: from the
-first whose images do not confirm it, every tilt carries the plane model's error. At a
+asked again on frames 2, 4, 8, ... until the first re-anchor: from the first whose images do
+not confirm it, every tilt carries the plane model's error in the report, and where they
+contradict it the carried distance gets the terrain's process noise. At a
 re-anchor, :meth:`PlaneTracker.successor` gives
 the new keyframe's plane: the MAP of the plane carried by the motion, the normal measured
 from the two images and the mounting prior. docs/algorithm.md section 4 gives the reasons and
@@ -171,6 +172,9 @@ class PlaneTracker:
         #: every keyframe's tilt, carried from it, keeps the plane model's error, for the
         #: whole drive
         self._unconfirmed_tilt: np.ndarray | None = None
+        #: ... and asked again, they contradicted it (chi-square from CONSISTENT_CHI2): the
+        #: carried distance gets the terrain's process noise (:attr:`distance_change`)
+        self._contradicted_later = False
         #: (2, 2) rad^2: this keyframe was anchored on a captured frame whose split-half
         #: fits disagreed on its rotation this much (:meth:`anchored_captured`)
         self._spread_tilt: np.ndarray | None = None
@@ -198,10 +202,12 @@ class PlaneTracker:
         """The carried distance's process noise per keyframe, a share of the distance:
         DISTANCE_CHANGE_PLANAR once the images of frame 0 confirmed init.yaml's tilt (the
         ground seen is the plane under the wheels, and the distance changes only as the
-        motion carries it), DISTANCE_CHANGE until then or where they contradicted it
-        (terrain, a road seen at grazing angles: the ground seen can change unseen between
-        keyframes). Chosen by ``benchmarks.held_out``."""
-        agreed = self.initial_tilt is not None and not self.initial_tilt.contradicts
+        motion carries it), DISTANCE_CHANGE until then or where they contradicted it, on
+        the first frames or asked again before the first re-anchor (terrain, a road seen at
+        grazing angles: the ground seen can change unseen between keyframes). Chosen by
+        ``benchmarks.held_out``."""
+        agreed = self.initial_tilt is not None and not self.initial_tilt.contradicts \
+            and not self._contradicted_later
         return DISTANCE_CHANGE_PLANAR if agreed else DISTANCE_CHANGE
 
     @property
@@ -234,7 +240,7 @@ class PlaneTracker:
         the first re-anchor the images are asked again whether they still confirm it, each
         time across twice the baseline (:meth:`wants_test`)."""
         return (key.index == 0 and self.initial_tilt is not None and not self.initial_tilt.contradicts
-                and self._unconfirmed_tilt is None and not self.unsettled)
+                and not self._contradicted_later and not self.unsettled)
 
     def anchored(self, covariance: np.ndarray | None = None) -> None:
         """A new keyframe was anchored with a plane of ``covariance`` (None: the prior's)."""
@@ -276,9 +282,10 @@ class PlaneTracker:
         if fit.measured is None:
             return None
         chi2 = tilt_chi2(fit.measured, key.plane)
-        if self._watching(key):  # reporting only: the tilt is kept whatever they say
-            if chi2 >= UNCONFIRMED_CHI2:
+        if self._watching(key):  # the tilt is kept whatever they say
+            if chi2 >= UNCONFIRMED_CHI2 and self._unconfirmed_tilt is None:
                 self._unconfirmed(index, chi2)
+            self._contradicted_later = chi2 >= CONSISTENT_CHI2
             return None
         precise = measured_tilt_std_deg(fit.measured) < CONFIRMED_DEG
         keep = key.index == 0 and self.keep_initial_tilt

@@ -13,6 +13,10 @@ import numpy as np
 import pytest
 
 from monovo_cli import track_frames
+from monovo_cli.core.plane.belief import DISTANCE_CHANGE_PLANAR
+from monovo_cli.core.plane.motion_covariance import TILT_MODEL_ERROR_DEG
+from monovo_cli.core.plane.tracker import InitialTilt, PlaneTracker
+from monovo_cli.geometry.plane import Plane
 from monovo_cli.geometry.trajectory import path_length
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_tum
@@ -46,3 +50,19 @@ def test_both_conventions_are_unbiased_and_reading_the_nominal_mount_as_frame_0s
     cfg = load_init(drives["nominal"] / "init.yaml")
     misread_other = final_pct(drives["nominal"], dataclasses.replace(cfg, nominal=False))
     assert misread < 0.05 and misread_other > 2 * as_nominal
+
+
+def test_a_tilt_the_images_stop_confirming_carries_the_model_error():
+    """Frame 0's exact tilt agreed with frame 1 (chi-square 2): the ground seen is the plane
+    under the wheels, and the carried distance gets the planar process noise. When a later
+    frame's images no longer confirm it (chi-square 6, above the 90 % point), every tilt
+    carries the model error in the report; the distance keeps the planar noise (on a plane
+    one test in ten does that by chance)."""
+    tracker = PlaneTracker(Plane(np.array([0.0, 0.8, 0.6]), 1.5))
+    tracker.initial_tilt = InitialTilt((0.1, -0.1), (0.1, 0.1), 2.0, 1, False)
+    assert tracker.distance_change == DISTANCE_CHANGE_PLANAR
+    before = tracker.reported_covariance
+    tracker._unconfirmed(4, 6.0)  # what PlaneTracker.test does on frame 4's images
+    assert tracker.distance_change == DISTANCE_CHANGE_PLANAR
+    added = np.diag(tracker.reported_covariance - before)[1:]
+    np.testing.assert_allclose(added, np.radians(TILT_MODEL_ERROR_DEG) ** 2)
