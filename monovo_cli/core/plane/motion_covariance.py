@@ -152,7 +152,9 @@ class PlaneCovarianceCalibration:
 
     Distance: at each re-anchor the carried distance and the mounting prior's differ by
     ``nu_d``, of predicted variance ``P_carried + (process noise)^2 + sigma_prior^2``; the
-    median of ``nu_d^2 / predicted`` over CHI2_1_MEDIAN scales the distance variance.
+    median of ``nu_d^2 / predicted`` over CHI2_1_MEDIAN scales the distance variance where it
+    is above 1 (where it is below, both may stand on frame 0's plane while the ground seen
+    sits elsewhere: on a sloped drive they agreed to 0.5 % while the distance was 2.5 % off).
     Tilt: what the outer product of the carried and new planes' tilt difference holds beyond
     their two covariances is the plane model's error; its element-wise median over
     CHI2_1_MEDIAN, times ``1 / (2 (1 - TILT_PERSISTENCE))``, is added to the tilt block. The
@@ -200,7 +202,10 @@ class PlaneCovarianceCalibration:
         if self._calibration is None:  # (worked out once per re-anchor)
             g, Q = 1.0, np.eye(2) * math.radians(TILT_MODEL_ERROR_DEG) ** 2
             if self._distance_nis:
-                g = math.sqrt(float(np.median(self._distance_nis)) / CHI2_1_MEDIAN)
+                # widened where the innovations say so, never narrowed: the carried distance
+                # and the prior agreeing better than their widths does not make either right
+                # when both stand on frame 0's plane and the ground seen is elsewhere
+                g = max(1.0, math.sqrt(float(np.median(self._distance_nis)) / CHI2_1_MEDIAN))
             if self._tilt_excess:
                 Q = _median_excess(self._tilt_excess) / (2.0 * (1.0 - TILT_PERSISTENCE))
             seen = None
