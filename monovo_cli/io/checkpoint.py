@@ -22,8 +22,9 @@ from monovo_cli.io.atomic import DigestingStream, atomic_write_with
 from monovo_cli.version import __version__
 
 CHECKPOINT_FILE = ".track-checkpoint.pkl"
-FORMAT = "monovo-checkpoint-3"  # 3: the plane tracker keeps the ground seen (2: the recorder
-#                                  keeps columns, not a row object per frame)
+FORMAT = "monovo-checkpoint-4"  # 3, 4: the plane tracker keeps the ground seen, and whether
+#                                  frame 0's tilt was contradicted later (2: the recorder keeps
+#                                  columns, not a row object per frame)
 
 
 @dataclass(frozen=True)
