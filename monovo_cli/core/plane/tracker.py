@@ -286,6 +286,10 @@ class PlaneTracker:
             if chi2 >= UNCONFIRMED_CHI2 and self._unconfirmed_tilt is None:
                 self._unconfirmed(index, chi2)
             self._contradicted_later = chi2 >= CONSISTENT_CHI2
+            if self._contradicted_later:
+                log.info("frame %d's images contradict init.yaml's ground tilt (chi-square "
+                         "%.1f): the distance carried from keyframe to keyframe is treated as "
+                         "on terrain from here; the tilt is kept", index, chi2)
             return None
         precise = measured_tilt_std_deg(fit.measured) < CONFIRMED_DEG
         keep = key.index == 0 and self.keep_initial_tilt
