@@ -306,6 +306,7 @@ def tilt_std_deg(covariance: np.ndarray) -> float:
     """The largest std (deg) of the tilt angles in a plane covariance (3, 3)."""
     return float(np.degrees(np.sqrt(max(np.linalg.eigvalsh(covariance[1:, 1:])[-1], 0.0))))
 CONSISTENT_CHI2 = 13.8  # chi-square of 2 tilts at 99.9 %: below it the images confirm a plane
+UNCONFIRMED_CHI2 = 4.61  # chi-square of 2 tilts at 90 %: from it the images do not confirm a tilt
 
 
 def measured_tilt(measured: PlaneBelief, plane: Plane) -> tuple[np.ndarray, np.ndarray] | None:

@@ -57,6 +57,7 @@ from monovo_cli.core.plane.belief import (
     DISTANCE_CHANGE_PLANAR,
     PLANE_SETTLED_DEG,
     TILT_CHANGE_DEG,
+    UNCONFIRMED_CHI2,
     PlaneBelief,
     PlaneLink,
     carrying_jacobian,
@@ -85,7 +86,6 @@ from monovo_cli.geometry.plane import Plane, tangent_basis
 log = logging.getLogger(__name__)
 
 TILT_CHECK_FRAMES = 10  # frames of keyframe 0 on which init.yaml's tilt is measured at most
-UNCONFIRMED_CHI2 = 4.61  # chi-square of 2 tilts at 90 %: from it the images do not confirm a tilt
 
 
 @dataclass(frozen=True)
