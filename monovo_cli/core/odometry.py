@@ -186,6 +186,12 @@ class Odometry:
         return self._plane.initial_tilt
 
     @property
+    def ground_planar(self) -> bool:
+        """The ground seen so far is a plane (:attr:`PlaneTracker.ground_planar`): hindsight
+        may re-read motions against the tilts it solves."""
+        return self._plane.ground_planar
+
+    @property
     def state(self) -> OdometryState:
         """Where the tracker stands between frames (:class:`OdometryState`)."""
         return self._state

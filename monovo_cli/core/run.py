@@ -26,17 +26,42 @@ class KeyRecord:
 
     ``index`` the frame it was anchored on; ``world_from_key`` (4, 4) its pose T_0_key;
     ``plane`` its ground in its own camera frame; ``link`` how that plane was fused with the
-    previous keyframe's (None for the first keyframe and after a re-initialisation).
+    previous keyframe's (None for the first keyframe and after a re-initialisation);
+    ``samples`` (m, 3) about SAMPLES of its finest observation points, in its camera, where
+    they lie on its plane (where its images hold the motions;
+    :func:`~monovo_cli.mapping.smoothing.reread_motions`); None where they were lifted off
+    it by a terrain grid (solved with the images, they keep their place when the plane's
+    tilt moves in hindsight).
     """
 
     index: int
     world_from_key: np.ndarray
     plane: Plane
     link: PlaneLink | None
+    samples: np.ndarray | None = None
 
     @classmethod
     def of(cls, key: Keyframe) -> KeyRecord:
-        return cls(int(key.index), np.array(key.world_from_key), key.plane, key.link)
+        return cls(int(key.index), np.array(key.world_from_key), key.plane, key.link,
+                   key_samples(key))
+
+
+SAMPLES = 64  # observation points a keyframe's record keeps
+
+
+def key_samples(key: Keyframe, count: int = SAMPLES) -> np.ndarray | None:
+    """(<= count, 3): every k-th of ``key``'s finest observation points (finite ones), in
+    its camera; None where a terrain grid lifted them off its plane."""
+    levels = getattr(key, "levels", None)  # (None: a stand-in without points)
+    if not levels or getattr(key, "terrain_grid", None) is not None:
+        return None
+    return subsample(levels[0].points.X, count)
+
+
+def subsample(X: np.ndarray, count: int = SAMPLES) -> np.ndarray:
+    """(<= count, 3): every k-th of the points ``X`` (N, 3), finite ones."""
+    X = X[::max(1, -(-len(X) // count))]
+    return np.array(X[np.all(np.isfinite(X), axis=1)], dtype=float)
 
 
 @dataclass(frozen=True, eq=False)

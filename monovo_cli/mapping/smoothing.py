@@ -12,15 +12,22 @@ with the gains and innovations each re-anchor left in its
 :class:`~monovo_cli.core.plane.belief.PlaneLink`) gives each keyframe's plane with the
 knowledge of the keyframes after it.
 
-The images fix a motion against a plane only as ``t / d`` (the plane-induced homography
-``R + t n^T / d``): the motions of a keyframe's segment, measured against its plane at
-distance ``d``, are re-read against its smoothed plane at ``d'`` by scaling their
-translations by ``d' / d``, rotations unchanged. That is exact for a plane without terrain grid
-and a change of distance; the smoothed tilt's effect on the motions (first order in the
-tilt correction times the translation) is left out. Each keyframe's pose is its
-predecessor's re-scaled pose composed with the re-scaled motion between the two, and every
-frame's pose its keyframe's composed with its own re-scaled motion from it, so the
-trajectory stays one rigid chain.
+The images fix a motion against a plane only through the plane-induced homography (a
+keyframe ray ``x`` to ``R^T (I - t n^T / d) x`` in the frame camera): the motions of a
+keyframe's segment, measured against its plane ``(n, d)``, are re-read against its smoothed
+plane ``(n', d')`` (:func:`reread_motions`). Where only the distance changed that is exact
+and simple: the translations scale by ``d' / d``, rotations unchanged. Where the tilt
+changed too, no motion against the new plane maps every ray as before (the tilt's change
+times the translation is a rank-one term a rotation cannot take), so the motion re-read is
+the one whose homography comes closest, in the image, at the keyframe's own observation
+points (its ``samples``): the least squares the images themselves would have solved, had
+the tracker had the smoothed plane then. (On a drive whose frame 0 was a nominal mount, the
+first keyframes' tilts move by tenths of a degree in hindsight, and their motions with
+them: a rotation of the whole trajectory of 20-50 mdeg without this; benchmarks.initial_pose.)
+A keyframe without samples (a record from elsewhere) has its translations scaled alone. Each
+keyframe's pose is its predecessor's re-read pose composed with the re-read motion between
+the two, and every frame's pose its keyframe's composed with its own re-read motion from
+it, so the trajectory stays one rigid chain.
 
 The distances. The backward pass smooths the keyframes' planes with the mounting prior as
 the filter had it (centred on the mean mount: a declared one, or the latent one as far as
@@ -49,7 +56,7 @@ from typing import Protocol
 import numpy as np
 
 from monovo_cli.core.plane.belief import PlaneLink, from_chart, smoothed_corrections
-from monovo_cli.geometry.lie import se3_inv
+from monovo_cli.geometry.lie import se3_inv, so3_exp
 from monovo_cli.geometry.plane import Plane
 
 
@@ -60,6 +67,8 @@ class Anchored(Protocol):
     world_from_key: np.ndarray
     plane: Plane
     link: PlaneLink | None
+    #: (m, 3) a few of its observation points, in its camera (None: none kept)
+    samples: np.ndarray | None
 
 
 def smoothed_distances(keys: Sequence[Anchored],
@@ -194,10 +203,74 @@ def segment_log_distance_ratios(index: Sequence[int], world_from_cam: np.ndarray
             zip(keys, _segments(index, world_from_cam, keys))]
 
 
-def smoothed_key_poses(keys: Sequence[Anchored], planes: Sequence[Plane]) -> np.ndarray:
-    """(K, 4, 4) the keyframes' poses re-scaled with their smoothed ``planes``: the first
+def reread_motions(key_from_cam: np.ndarray, plane: Plane, smoothed: Plane,
+                   samples: np.ndarray | None, iterations: int = 3) -> np.ndarray:
+    """(n, 4, 4): the motions ``key_from_cam`` (n, 4, 4), measured against a keyframe's
+    ``plane``, re-read against its ``smoothed`` plane (module docstring).
+
+    ``samples`` (m, 3): points in the keyframe's camera whose rays carry the image evidence
+    (its observation points; only their directions count). Same normal, or no samples: the
+    translations scaled by ``d' / d``. Otherwise, from there, Gauss-Newton over each
+    motion's rotation (right-multiplied) and translation on the reprojection, in normalised
+    image coordinates, of the rays' points on the smoothed plane onto where the motion put
+    their points on ``plane``; rays behind either camera are left out."""
+    out = np.array(key_from_cam, dtype=float)
+    out[:, :3, 3] *= smoothed.distance / plane.distance
+    if samples is None or len(samples) < 3 or not len(out) or \
+            np.array_equal(smoothed.normal, plane.normal):
+        return out
+    rays = np.asarray(samples, dtype=float)
+    on_old, on_new = rays @ plane.normal, rays @ smoothed.normal
+    rays = rays[(on_old > 0) & (on_new > 0)]
+    if len(rays) < 3:
+        return out
+    X = rays * (plane.distance / (rays @ plane.normal))[:, None]
+    Xs = rays * (smoothed.distance / (rays @ smoothed.normal))[:, None]
+    R, t = np.asarray(key_from_cam, dtype=float)[:, :3, :3], np.asarray(key_from_cam)[:, :3, 3]
+    P = np.einsum("fji,fmj->fmi", R, X[None] - t[:, None])  # R^T (X - t), (n, m, 3)
+    seen = P[..., 2] > 1e-9
+    target = P[..., :2] / np.where(seen, P[..., 2], 1.0)[..., None]
+    R2, t2 = out[:, :3, :3].copy(), out[:, :3, 3].copy()
+    for _ in range(iterations):
+        Q = np.einsum("fji,fmj->fmi", R2, Xs[None] - t2[:, None])
+        ok = (seen & (Q[..., 2] > 1e-9))[..., None]
+        z = np.where(ok[..., 0], Q[..., 2], 1.0)
+        r = np.where(ok, Q[..., :2] / z[..., None] - target, 0.0)
+        D = np.zeros(Q.shape[:-1] + (2, 3))  # d projection / d Q
+        D[..., 0, 0] = D[..., 1, 1] = 1.0 / z
+        D[..., :, 2] = -Q[..., :2] / z[..., None] ** 2
+        # Q moves by Q x w for R2 <- R2 exp(w), and by -v for t2 <- t2 + R2 v
+        J = np.concatenate([np.einsum("fmak,fmkj->fmaj", D, _skew_rows(Q)), -D], axis=-1)
+        J = np.where(ok[..., None], J, 0.0)
+        H = np.einsum("fmai,fmaj->fij", J, J) + 1e-12 * np.eye(6)
+        step = -np.linalg.solve(H, np.einsum("fmai,fma->fi", J, r)[..., None])[..., 0]
+        t2 = t2 + np.einsum("fij,fj->fi", R2, step[:, 3:])
+        R2 = np.einsum("fij,fjk->fik", R2, np.array([so3_exp(w) for w in step[:, :3]]))
+    out[:, :3, :3], out[:, :3, 3] = R2, t2
+    return out
+
+
+def _skew_rows(Q: np.ndarray) -> np.ndarray:
+    """(..., 3, 3): ``[q]_x`` of every row ``q`` of ``Q`` (..., 3), so that ``[q]_x w =
+    q x w``."""
+    S = np.zeros(Q.shape + (3,))
+    S[..., 0, 1], S[..., 0, 2] = -Q[..., 2], Q[..., 1]
+    S[..., 1, 0], S[..., 1, 2] = Q[..., 2], -Q[..., 0]
+    S[..., 2, 0], S[..., 2, 1] = -Q[..., 1], Q[..., 0]
+    return S
+
+
+def _samples(key: Anchored) -> np.ndarray | None:
+    return getattr(key, "samples", None)
+
+
+
+def smoothed_key_poses(keys: Sequence[Anchored], planes: Sequence[Plane],
+                       samples: Sequence[np.ndarray | None] | None = None) -> np.ndarray:
+    """(K, 4, 4) the keyframes' poses re-read with their smoothed ``planes``: the first
     keeps its pose, each next one is its predecessor's composed with the motion between the
-    two, its translation scaled by the predecessor's ``d' / d``."""
+    two re-read against the predecessor's smoothed plane (:func:`reread_motions`, with
+    ``samples[k]`` of keyframe k; None: every translation scaled alone)."""
     out = np.empty((len(keys), 4, 4))
     for a, key in enumerate(keys):
         if a == 0:
@@ -205,8 +278,8 @@ def smoothed_key_poses(keys: Sequence[Anchored], planes: Sequence[Plane]) -> np.
             continue
         prev = keys[a - 1]
         step = se3_inv(prev.world_from_key) @ key.world_from_key
-        step[:3, 3] *= planes[a - 1].distance / prev.plane.distance
-        out[a] = out[a - 1] @ step
+        out[a] = out[a - 1] @ reread_motions(step[None], prev.plane, planes[a - 1],
+                                             None if samples is None else samples[a - 1])[0]
     return out
 
 
@@ -232,12 +305,17 @@ class SmoothedDrive:
 
 
 def smooth_drive(index: Sequence[int], world_from_cam: np.ndarray,
-                 keys: Sequence[tuple[int, Anchored]], *, segments: bool = True) -> SmoothedDrive:
-    """The poses ``world_from_cam`` (N, 4, 4) of frames ``index`` (N,), in order, re-scaled
+                 keys: Sequence[tuple[int, Anchored]], *, segments: bool = True,
+                 tilts: bool = False) -> SmoothedDrive:
+    """The poses ``world_from_cam`` (N, 4, 4) of frames ``index`` (N,), in order, re-read
     with the smoothed planes of ``keys`` (``(frame index, keyframe)``, oldest first): each
     frame's motion from the latest keyframe at or before it scaled by that keyframe's
-    ``d' / d``. Frames before the first keyframe keep their poses. ``segments`` False: the
-    mounting prior at the keyframes alone, as the filter had it (for comparison)."""
+    ``d' / d``, and with ``tilts`` re-read against its smoothed tilt too where the keyframe
+    kept samples (:func:`reread_motions`; for a ground the re-anchors saw as a plane: on
+    terrain the keyframes' tilts are of different ground, and the smoother's, which takes
+    them for one plane's, moved the rolling drives' ends 0.25 -> 1.36 %). Frames before the
+    first keyframe keep their poses. ``segments`` False: the mounting prior at the keyframes
+    alone, as the filter had it (for comparison)."""
     W = np.asarray(world_from_cam, dtype=float)
     if not keys:
         return SmoothedDrive((), (), np.zeros((0, 4, 4)), W.copy())
@@ -246,12 +324,13 @@ def smooth_drive(index: Sequence[int], world_from_cam: np.ndarray,
     log_ratios = ([_mean_log_distance_ratio(k, rel) for k, (_, rel) in zip(anchored, parts)]
                   if segments else None)
     planes = smoothed_planes(anchored, log_ratios)
-    key_poses = smoothed_key_poses(anchored, planes)
+    samples = [_samples(k) if tilts else None for k in anchored]
+    key_poses = smoothed_key_poses(anchored, planes, samples)
     out = W.copy()
     for a, (key, (rows, rel)) in enumerate(zip(anchored, parts)):
         if not len(rows):
             continue
-        rel[:, :3, 3] *= planes[a].distance / key.plane.distance
+        rel = reread_motions(rel, key.plane, planes[a], samples[a])
         out[rows] = np.einsum("ij,njk->nik", key_poses[a], rel)
     return SmoothedDrive(tuple(int(i) for i, _ in keys), tuple(planes), key_poses, out)
 

@@ -268,7 +268,8 @@ class Tracking:
         if not self.smooth:
             return W
         with one_blas_thread():
-            return smooth_drive(rec.index, W, [(k.index, k) for k in rec.keyframes]).world_from_cam
+            return smooth_drive(rec.index, W, [(k.index, k) for k in rec.keyframes],
+                                tilts=self._odometry.ground_planar).world_from_cam
 
     def result(self, seconds: float = 0.0) -> TrackRun:
         """The run of the frames recorded, its lost frames moved with the gaps closed after
@@ -278,7 +279,8 @@ class Tracking:
         W = rec.world_from_cam.reshape(-1, 4, 4)
         closed = close_gaps(rec.index, W, rec.gaps)
         with one_blas_thread():
-            self.drive = (smooth_drive(rec.index, closed, [(k.index, k) for k in rec.keyframes])
+            self.drive = (smooth_drive(rec.index, closed, [(k.index, k) for k in rec.keyframes],
+                                       tilts=self._odometry.ground_planar)
                           if self.smooth and len(rec) else None)
             if self.drive is not None and self.drive.key_index:
                 log.info("the ground at frame %d as the whole drive measured it: %s; "

@@ -181,6 +181,12 @@ class PlaneTracker:
         self.consistency = PlaneCovarianceCalibration()
 
     @property
+    def ground_planar(self) -> bool:
+        """The ground seen so far is a plane, as the re-anchors measured it
+        (:attr:`PlaneCovarianceCalibration.ground_planar`)."""
+        return self.consistency.ground_planar
+
+    @property
     def reported_covariance(self) -> np.ndarray:
         """(3, 3) :attr:`covariance` as the re-anchors so far say it is (for reporting only);
         where the images contradicted a plane given as exact, the ground they see departs
