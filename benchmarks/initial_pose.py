@@ -11,7 +11,11 @@ it (+1.3 cm), so frame 0's ground and the nominal mount differ by the crest. Eac
 in one convention (``--init-pose frame0``: init.yaml holds frame 0's true ground; ``nominal``:
 the nominal mount, declared with ``ground.nominal: true``) and tracked with default options
 (``monovo_cli.track_frames``), then read the other way (the same frames, the same file with
-``nominal`` flipped) to show what the convention is worth:
+``nominal`` flipped) to show what the convention is worth. The flat drive is also tracked
+with its own mean mount declared (the mean over its frames of the ground seen from the
+camera, from the truth): the design mount synth writes is the bobbing's long-run mean, and
+over 150 frames the drive's own mean sits 0.03-0.08 % closer to the ground (the tilts'
+cosine, and the periods' partial cycles), an offset no estimator can see:
 
 * **final error** -- end-point error of the trajectory written (smoothed in hindsight), % of
   the true path;
@@ -30,10 +34,13 @@ import dataclasses
 import tempfile
 from pathlib import Path
 
+import numpy as np
+
 from benchmarks.common import load, machine, one_core
 from benchmarks.integrity import REAL, final_pct, table, untrusted
 from monovo_cli import track_frames
 from monovo_cli.geometry.lie import se3_inv
+from monovo_cli.geometry.plane import Plane
 from monovo_cli.geometry.trajectory import path_length
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_tum
@@ -43,8 +50,21 @@ SEED = 21
 DRIVES = (("flat", 150), ("rolling", 200), ("slope", 200), ("rocks", 200))
 
 
-def row(name: str, seq: Path, nominal: bool, how: str) -> list[str]:
+def mean_mount(seq: Path) -> Plane:
+    """The mean over a flat drive's frames of the ground in the camera (mean normal,
+    normalised, and mean distance), from frame 0's true ground (``seq`` written with
+    ``--init-pose frame0``) and the true motion: the drive's own mean mount."""
+    n0, d0 = load_init(seq / "init.yaml").plane.normal, load_init(seq / "init.yaml").plane.distance
+    _, gt = read_tum(seq / "groundtruth.tum")
+    normals = np.array([g[:3, :3].T @ n0 for g in gt])
+    n = normals.mean(axis=0)
+    return Plane(n / np.linalg.norm(n), float(np.mean([d0 - n0 @ g[:3, 3] for g in gt])))
+
+
+def row(name: str, seq: Path, nominal: bool, how: str, plane: Plane | None = None) -> list[str]:
     cfg = dataclasses.replace(load_init(seq / "init.yaml"), nominal=nominal)
+    if plane is not None:
+        cfg = dataclasses.replace(cfg, plane=plane)
     run = track_frames(seq / "frames", cfg)
     _, gt = read_tum(seq / "groundtruth.tum")
     truth = {k: se3_inv(a) @ b for k, (a, b) in enumerate(zip(gt[:-1], gt[1:]), start=1)}
@@ -73,6 +93,9 @@ def main() -> None:
                 rows.append(row(f"{terrain}, init.yaml {written}", seq, as_nominal, "as written"))
                 rows.append(row(f"{terrain}, init.yaml {written}", seq, not as_nominal,
                                 "read the other way"))
+            if terrain == "flat":
+                rows.append(row("flat, the drive's mean mount declared", seq, True, "as written",
+                                mean_mount(Path(tmp) / "flat-frame0")))
     head = ("| drive | read | frames | path (m) | final error (% of path) | lost / reinit | "
             "untrusted rows |")
     print(table(head, rows) + "\n")
