@@ -165,6 +165,10 @@ class Odometry:
         # the variance the lost frames since the last accepted one left in the previous pose
         self._gap_variance = np.zeros(6)
         self._gap_steps: list[np.ndarray] = []  # their predicted motions' variances (6,)
+        #: (6, 6) the model error the last re-anchor measured on its own row (its terrain
+        #: grid's correction, its split halves' spread), for the first motion against the
+        #: keyframe it anchored (None: nothing handed over)
+        self._handed_over: np.ndarray | None = None
         self._good: GoodFrame | None = None
         self._started = False
         self._announced: Keyframe | None = None  # the keyframe :meth:`advance` last reported
@@ -383,11 +387,22 @@ class Odometry:
         cov = self._motion_cov.relative(est, key.levels[0], key.plane,
                                         self._plane.reported_covariance,
                                         self._cur_from_key_prev, prev_from_cur)
+        model = np.zeros((6, 6))
         if terrain_grid is not None:  # the correction the terrain grid made is this motion's model error
             jump = _motion_change(prev_from_cur, self._motion_to(key, orthonormalize(tracked.cur_from_key)))
-            cov = cov + np.outer(jump, jump)
+            model += np.outer(jump, jump)
         for half, _ in spread:  # a captured frame's model error, as its halves disagree
-            cov = cov + np.outer(half, half)
+            model += np.outer(half, half)
+        if self._handed_over is not None:
+            # The first motion against a keyframe: its points sit on the plane (or the grid)
+            # the re-anchor fitted, with that fit's model error, and over one frame's
+            # baseline the robust weights do not yet set the unmodelled relief apart (on
+            # rocks: 2.5-2.8 mdeg off on 5 cm, 6-8.5 std, where the rows after it are within
+            # 2). It carries the error its re-anchor measured on its own row (not what that
+            # row carried in turn: on a drive that re-anchors every frame it would pile up).
+            cov = cov + self._handed_over
+        self._handed_over = None
+        cov = cov + model
         if self._gap_variance.any():  # the previous pose was only predicted: its error is ours
             cov = cov + _from_predicted(self._gap_variance, prev_from_cur)
             self._gap_variance = np.zeros(6)
@@ -412,6 +427,7 @@ class Odometry:
                                        None if terrain_grid is None else (terrain_grid, cur_from_key), link):
             status = FrameStatus.REANCHORED
             self._plane.anchored_captured(plane_cur, [w for _, w in spread])
+            self._handed_over = model if model.any() else None
         elif not recovering:  # (a recovering tracker whose new keyframe failed stays so)
             self._state = OdometryState.TRACKING
         return FrameResult(index, timestamp, world_from_cur, prev_from_cur, est.msd,
@@ -702,6 +718,7 @@ class Odometry:
             if self._reanchor(index, image, pyr, world_from_cur, plane, plane_cov):
                 self._lost_run, self._gap_steps = 0, []
                 self._gap_variance = np.zeros(6)  # the next motions are from this keyframe
+                self._handed_over = None  # (a re-initialised keyframe measured no model error)
                 self._recent_msd.clear()  # a fresh start: no msd history yet
                 self._world_from_prev = world_from_cur
                 self._good = GoodFrame(index, image, world_from_cur, np.eye(4))

@@ -22,7 +22,8 @@ from monovo_cli.io.atomic import DigestingStream, atomic_write_with
 from monovo_cli.version import __version__
 
 CHECKPOINT_FILE = ".track-checkpoint.pkl"
-FORMAT = "monovo-checkpoint-5"  # 5: keyframe records keep sample points (3, 4: the plane
+FORMAT = "monovo-checkpoint-5"  # 5: keyframe records keep sample points, the tracker the
+#                                  model error it hands to the next row (3, 4: the plane
 #                                  tracker keeps the ground seen, and whether frame 0's tilt
 #                                  was contradicted later; 2: the recorder keeps columns, not a
 #                                  row object per frame)
