@@ -136,8 +136,7 @@ class KeyLevel:
             K, K_inv = self._intrinsics
             H = K @ (R + np.outer(t, self.plane_m)) @ K_inv
             return cv2.perspectiveTransform(self.grid, H)
-        if not cam.has_distortion and len(self.points) and \
-                float(np.min(self.points.X @ R[2])) + t[2] > 1e-9:
+        if not cam.has_distortion and len(self.points) and self._in_front(R[2], t[2]):
             # points with depths of their own (not on one plane), all in front: moved and
             # projected by OpenCV in one pass (a 4x4 map to (u w, v w, w, w))
             M = np.zeros((4, 4))
@@ -148,6 +147,21 @@ class KeyLevel:
         Xc += t
         u, v, _ = project_in_front(cam, Xc)
         return pixel_grid(u, v)
+
+    def _in_front(self, r: np.ndarray, tz: float) -> bool:
+        """Every point's current depth ``X . r + tz`` is positive: at once where the points'
+        bounding box is in front (the depth's least over the box is a bound of the points'),
+        over the points themselves only where it is not."""
+        lo, hi = self._box
+        if float(np.sum(np.minimum(r * lo, r * hi))) + tz > 1e-9:
+            return True
+        return float(np.min(self.points.X @ r)) + tz > 1e-9
+
+    @cached_property
+    def _box(self) -> tuple[np.ndarray, np.ndarray]:
+        """The points' bounding box in the keyframe camera: ``(min, max)`` (3,) each."""
+        X = self.points.X
+        return X.min(axis=0), X.max(axis=0)
 
     @cached_property
     def _intrinsics(self) -> tuple[np.ndarray, np.ndarray]:
