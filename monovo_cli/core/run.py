@@ -46,7 +46,7 @@ class KeyRecord:
                    key_samples(key))
 
 
-SAMPLES = 64  # observation points a keyframe's record keeps
+SAMPLES = 32  # observation points a keyframe's record keeps
 
 
 def key_samples(key: Keyframe, count: int = SAMPLES) -> np.ndarray | None:

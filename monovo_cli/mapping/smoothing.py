@@ -56,7 +56,7 @@ from typing import Protocol
 import numpy as np
 
 from monovo_cli.core.plane.belief import PlaneLink, from_chart, smoothed_corrections
-from monovo_cli.geometry.lie import se3_inv, so3_exp
+from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.geometry.plane import Plane
 
 
@@ -204,7 +204,7 @@ def segment_log_distance_ratios(index: Sequence[int], world_from_cam: np.ndarray
 
 
 def reread_motions(key_from_cam: np.ndarray, plane: Plane, smoothed: Plane,
-                   samples: np.ndarray | None, iterations: int = 3) -> np.ndarray:
+                   samples: np.ndarray | None, iterations: int = 2) -> np.ndarray:
     """(n, 4, 4): the motions ``key_from_cam`` (n, 4, 4), measured against a keyframe's
     ``plane``, re-read against its ``smoothed`` plane (module docstring).
 
@@ -214,55 +214,88 @@ def reread_motions(key_from_cam: np.ndarray, plane: Plane, smoothed: Plane,
     motion's rotation (right-multiplied) and translation on the reprojection, in normalised
     image coordinates, of the rays' points on the smoothed plane onto where the motion put
     their points on ``plane``; rays behind either camera are left out."""
-    out = np.array(key_from_cam, dtype=float)
-    out[:, :3, 3] *= smoothed.distance / plane.distance
-    if samples is None or len(samples) < 3 or not len(out) or \
-            np.array_equal(smoothed.normal, plane.normal):
+    return _reread_all([(key_from_cam, plane, smoothed, samples)], iterations)[0]
+
+
+def _reread_all(jobs: Sequence[tuple[np.ndarray, Plane, Plane, np.ndarray | None]],
+                iterations: int = 2) -> list[np.ndarray]:
+    """:func:`reread_motions` of every ``(key_from_cam, plane, smoothed, samples)`` of
+    ``jobs``, the Gauss-Newton of all their motions in one pass (a drive's few thousand
+    frames, re-read at every checkpoint)."""
+    out, Xo, Xs, where = [], [], [], []
+    for j, (motions, plane, smoothed, samples) in enumerate(jobs):
+        M = np.array(motions, dtype=float).reshape(-1, 4, 4)
+        M[:, :3, 3] *= smoothed.distance / plane.distance
+        out.append(M)
+        if samples is None or len(samples) < 3 or not len(M) or \
+                np.array_equal(smoothed.normal, plane.normal):
+            continue
+        rays = np.asarray(samples, dtype=float)
+        rays = rays[(rays @ plane.normal > 0) & (rays @ smoothed.normal > 0)]
+        if len(rays) < 3:
+            continue
+        Xo.append(rays * (plane.distance / (rays @ plane.normal))[:, None])
+        Xs.append(rays * (smoothed.distance / (rays @ smoothed.normal))[:, None])
+        where.append(j)
+    if not where:
         return out
-    rays = np.asarray(samples, dtype=float)
-    on_old, on_new = rays @ plane.normal, rays @ smoothed.normal
-    rays = rays[(on_old > 0) & (on_new > 0)]
-    if len(rays) < 3:
-        return out
-    X = rays * (plane.distance / (rays @ plane.normal))[:, None]
-    Xs = rays * (smoothed.distance / (rays @ smoothed.normal))[:, None]
-    R, t = np.asarray(key_from_cam, dtype=float)[:, :3, :3], np.asarray(key_from_cam)[:, :3, 3]
-    P = np.einsum("fji,fmj->fmi", R, X[None] - t[:, None])  # R^T (X - t), (n, m, 3)
-    seen = P[..., 2] > 1e-9
+    m = max(len(x) for x in Xo)
+    n = [len(out[j]) for j in where]
+    rows = np.repeat(np.arange(len(where)), n)  # the job of every motion to re-read
+    pad = np.zeros((len(where), m, 3))
+    X, Y, V = pad.copy(), pad.copy(), np.zeros((len(where), m), bool)
+    for a, (x, y) in enumerate(zip(Xo, Xs)):
+        X[a, :len(x)], Y[a, :len(y)], V[a, :len(x)] = x, y, True
+    X, Y, V = X[rows], Y[rows], V[rows]
+    T = np.concatenate([np.asarray(jobs[j][0], dtype=float).reshape(-1, 4, 4) for j in where])
+    M = np.concatenate([out[j] for j in where])
+    R, t = T[:, :3, :3], T[:, :3, 3]
+    P = (X - t[:, None]) @ R  # R^T (X - t) per point, (n, m, 3)
+    seen = V & (P[..., 2] > 1e-9)
     target = P[..., :2] / np.where(seen, P[..., 2], 1.0)[..., None]
-    R2, t2 = out[:, :3, :3].copy(), out[:, :3, 3].copy()
+    R2, t2 = M[:, :3, :3].copy(), M[:, :3, 3].copy()
     for _ in range(iterations):
-        Q = np.einsum("fji,fmj->fmi", R2, Xs[None] - t2[:, None])
-        ok = (seen & (Q[..., 2] > 1e-9))[..., None]
-        z = np.where(ok[..., 0], Q[..., 2], 1.0)
-        r = np.where(ok, Q[..., :2] / z[..., None] - target, 0.0)
-        D = np.zeros(Q.shape[:-1] + (2, 3))  # d projection / d Q
-        D[..., 0, 0] = D[..., 1, 1] = 1.0 / z
-        D[..., :, 2] = -Q[..., :2] / z[..., None] ** 2
-        # Q moves by Q x w for R2 <- R2 exp(w), and by -v for t2 <- t2 + R2 v
-        J = np.concatenate([np.einsum("fmak,fmkj->fmaj", D, _skew_rows(Q)), -D], axis=-1)
-        J = np.where(ok[..., None], J, 0.0)
-        H = np.einsum("fmai,fmaj->fij", J, J) + 1e-12 * np.eye(6)
-        step = -np.linalg.solve(H, np.einsum("fmai,fma->fi", J, r)[..., None])[..., 0]
-        t2 = t2 + np.einsum("fij,fj->fi", R2, step[:, 3:])
-        R2 = np.einsum("fij,fjk->fik", R2, np.array([so3_exp(w) for w in step[:, :3]]))
-    out[:, :3, :3], out[:, :3, 3] = R2, t2
+        Q = (Y - t2[:, None]) @ R2
+        ok = seen & (Q[..., 2] > 1e-9)
+        iz = np.where(ok, 1.0 / np.where(ok, Q[..., 2], 1.0), 0.0)
+        u, v = Q[..., 0] * iz, Q[..., 1] * iz
+        r = np.stack([u - target[..., 0], v - target[..., 1]], axis=-1) * ok[..., None]
+        # the normalised projection's derivatives: R2 <- R2 exp(w) moves Q by Q x w, and
+        # t2 <- t2 + R2 e by -e
+        J = np.zeros(Q.shape[:-1] + (2, 6))
+        J[..., 0, 0], J[..., 0, 1], J[..., 0, 2] = u * v, -(1.0 + u * u), v
+        J[..., 1, 0], J[..., 1, 1], J[..., 1, 2] = 1.0 + v * v, -u * v, -u
+        J[..., 0, 3], J[..., 0, 5] = -iz, u * iz
+        J[..., 1, 4], J[..., 1, 5] = -iz, v * iz
+        J *= ok[..., None, None]
+        J = J.reshape(len(J), -1, 6)
+        Jt = J.transpose(0, 2, 1)
+        H = Jt @ J + 1e-12 * np.eye(6)
+        step = -np.linalg.solve(H, Jt @ r.reshape(len(J), -1, 1))[..., 0]
+        t2 = t2 + (R2 @ step[:, 3:, None])[..., 0]
+        R2 = R2 @ _so3_exp_rows(step[:, :3])
+    M[:, :3, :3], M[:, :3, 3] = R2, t2
+    for j, part in zip(where, np.split(M, np.cumsum(n)[:-1])):
+        out[j] = part
     return out
 
 
-def _skew_rows(Q: np.ndarray) -> np.ndarray:
-    """(..., 3, 3): ``[q]_x`` of every row ``q`` of ``Q`` (..., 3), so that ``[q]_x w =
-    q x w``."""
-    S = np.zeros(Q.shape + (3,))
-    S[..., 0, 1], S[..., 0, 2] = -Q[..., 2], Q[..., 1]
-    S[..., 1, 0], S[..., 1, 2] = Q[..., 2], -Q[..., 0]
-    S[..., 2, 0], S[..., 2, 1] = -Q[..., 1], Q[..., 0]
-    return S
+def _so3_exp_rows(w: np.ndarray) -> np.ndarray:
+    """(n, 3, 3): the rotation of every rotation vector of ``w`` (n, 3) (Rodrigues; the
+    series below 1e-4 rad, the steps of a re-reading being far smaller)."""
+    t2 = np.einsum("ni,ni->n", w, w)
+    small = t2 < 1e-8
+    t = np.sqrt(np.where(small, 1.0, t2))
+    a = np.where(small, 1.0 - t2 / 6.0, np.sin(t) / t)
+    b = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(t)) / np.where(small, 1.0, t2))
+    W = np.zeros((len(w), 3, 3))
+    W[:, 0, 1], W[:, 0, 2], W[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+    W[:, 1, 0], W[:, 2, 0], W[:, 2, 1] = w[:, 2], -w[:, 1], w[:, 0]
+    return np.eye(3) + a[:, None, None] * W + b[:, None, None] * (W @ W)
 
 
 def _samples(key: Anchored) -> np.ndarray | None:
     return getattr(key, "samples", None)
-
 
 
 def smoothed_key_poses(keys: Sequence[Anchored], planes: Sequence[Plane],
@@ -271,15 +304,12 @@ def smoothed_key_poses(keys: Sequence[Anchored], planes: Sequence[Plane],
     keeps its pose, each next one is its predecessor's composed with the motion between the
     two re-read against the predecessor's smoothed plane (:func:`reread_motions`, with
     ``samples[k]`` of keyframe k; None: every translation scaled alone)."""
+    steps = _reread_all([(se3_inv(prev.world_from_key) @ key.world_from_key, prev.plane,
+                          planes[a], None if samples is None else samples[a])
+                         for a, (prev, key) in enumerate(zip(keys[:-1], keys[1:]))])
     out = np.empty((len(keys), 4, 4))
     for a, key in enumerate(keys):
-        if a == 0:
-            out[a] = key.world_from_key
-            continue
-        prev = keys[a - 1]
-        step = se3_inv(prev.world_from_key) @ key.world_from_key
-        out[a] = out[a - 1] @ reread_motions(step[None], prev.plane, planes[a - 1],
-                                             None if samples is None else samples[a - 1])[0]
+        out[a] = key.world_from_key if a == 0 else out[a - 1] @ steps[a - 1][0]
     return out
 
 
@@ -327,11 +357,11 @@ def smooth_drive(index: Sequence[int], world_from_cam: np.ndarray,
     samples = [_samples(k) if tilts else None for k in anchored]
     key_poses = smoothed_key_poses(anchored, planes, samples)
     out = W.copy()
-    for a, (key, (rows, rel)) in enumerate(zip(anchored, parts)):
-        if not len(rows):
-            continue
-        rel = reread_motions(rel, key.plane, planes[a], samples[a])
-        out[rows] = np.einsum("ij,njk->nik", key_poses[a], rel)
+    reread = _reread_all([(rel, key.plane, planes[a], samples[a])
+                          for a, (key, (_, rel)) in enumerate(zip(anchored, parts))])
+    for a, ((rows, _), rel) in enumerate(zip(parts, reread)):
+        if len(rows):
+            out[rows] = np.einsum("ij,njk->nik", key_poses[a], rel)
     return SmoothedDrive(tuple(int(i) for i, _ in keys), tuple(planes), key_poses, out)
 
 

@@ -193,8 +193,9 @@ def _fit(motion: np.ndarray, src: Plane, dst: Plane, rays: np.ndarray) -> np.nda
 
 def test_a_motion_re_read_against_a_new_tilt_is_the_one_its_images_fit_best():
     """A 30 cm motion measured against the true ground, re-read against a plane 0.6 / -0.4
-    deg off and 2 cm further: the module's Gauss-Newton lands on the independent fit (to 1e-5
-    mdeg and 1e-6 mm), 87 mdeg from the motion kept with its translation scaled; re-read back
+    deg off and 2 cm further: the module's two Gauss-Newton steps land on the independent fit
+    (to 1e-3 mdeg and 1e-5 mm; measured 3e-5 mdeg), 87 mdeg from the motion kept with its
+    translation scaled; re-read back
     against the true plane it returns to the motion within 0.5 mdeg and 0.02 mm (second order
     in the tilt's change times the motion, what no rotation can take)."""
     true = Plane(N0, 1.5)
@@ -204,8 +205,8 @@ def test_a_motion_re_read_against_a_new_tilt_is_the_one_its_images_fit_best():
     rays = _rays()
     against_off = reread_motions(T[None], true, off, rays)[0]
     expected = _fit(T, true, off, rays)
-    assert np.degrees(np.linalg.norm(so3_log(expected[:3, :3].T @ against_off[:3, :3]))) < 1e-8
-    assert against_off[:3, 3] == pytest.approx(expected[:3, 3], abs=1e-9)
+    assert np.degrees(np.linalg.norm(so3_log(expected[:3, :3].T @ against_off[:3, :3]))) < 1e-6
+    assert against_off[:3, 3] == pytest.approx(expected[:3, 3], abs=1e-8)
     scaled = reread_motions(T[None], true, off, None)[0]
     assert scaled[:3, :3] == pytest.approx(T[:3, :3], abs=1e-15)
     assert np.degrees(np.linalg.norm(so3_log(scaled[:3, :3].T @ against_off[:3, :3]))) > 0.08
@@ -228,8 +229,8 @@ def test_hindsight_re_reads_a_nominal_drive_s_motions_against_the_tilts_it_solve
     """A flat 256² drive whose init.yaml is the nominal mount (frame 0 at a crest, tilted
     about 2 deg from it): the first keyframes' tilts move in hindsight, and with their
     motions re-read against them the trajectory's rotation stays within 40 mdeg of the truth
-    on every frame (measured 21.7), where scaling the translations alone left the rotation
-    up to 136 mdeg off and the end 6.4 mm off (3.4 re-read)."""
+    on every frame (measured 24.5), where scaling the translations alone left the rotation
+    up to 136 mdeg off and the end 6.4 mm off (3.3 re-read)."""
     seq = tmp_path / "seq"
     synthesize(seq, preset="drive", terrain="flat", frames=80, size=(256, 256), noise_var=10.0,
                seed=3, init_pose="nominal")
