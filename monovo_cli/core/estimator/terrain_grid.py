@@ -31,6 +31,7 @@ row's first three entries (d intensity / d Xc), ``dr/d gain = -I_key``, ``dr/d b
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import numpy as np
 
@@ -183,15 +184,18 @@ def lifted_levels(levels: tuple[KeyLevel, ...], terrain_grid: TerrainGrid) -> tu
                  for kl in levels)
 
 
+@lru_cache(maxsize=8)
 def _curvature_normal(ny: int, nx: int) -> np.ndarray:
     """``D^T D`` (ny nx, ny nx) for the rows ``D`` of the grid's second differences along both
-    sides (vertex ``[j, i]`` at ``j nx + i``)."""
+    sides (vertex ``[j, i]`` at ``j nx + i``); cached by shape, read-only."""
     def one_side(n: int) -> np.ndarray:
         D = np.zeros((max(n - 2, 0), n))
         for k in range(n - 2):
             D[k, k:k + 3] = (1.0, -2.0, 1.0)
         return D.T @ D
-    return np.kron(np.eye(ny), one_side(nx)) + np.kron(one_side(ny), np.eye(nx))
+    out = np.kron(np.eye(ny), one_side(nx)) + np.kron(one_side(ny), np.eye(nx))
+    out.flags.writeable = False
+    return out
 
 
 def _prior(terrain_grid: TerrainGrid, X: np.ndarray, idx: np.ndarray, bw: np.ndarray) -> np.ndarray:
@@ -212,8 +216,8 @@ def _prior(terrain_grid: TerrainGrid, X: np.ndarray, idx: np.ndarray, bw: np.nda
     V = ny * nx
     C = np.column_stack([np.ones(V), terrain_grid.vertices()])
     Cp = np.linalg.solve(C.T @ C, C.T)  # (3, V): coefficients of the heights' best-fit plane
-    Q = np.eye(V) - C @ Cp
-    prior = Q.T @ Q / HEIGHT_SIGMA ** 2 + _curvature_normal(ny, nx) / CURVATURE_SIGMA ** 2
+    Q = np.eye(V) - C @ Cp  # the projector off the best-fit plane: Q^T Q = Q
+    prior = Q / HEIGHT_SIGMA ** 2 + _curvature_normal(ny, nx) / CURVATURE_SIGMA ** 2
     prior += Cp[1:].T @ Cp[1:] / np.tan(np.radians(TILT_SIGMA_DEG)) ** 2
     xy = X @ plane_axes(terrain_grid.plane).T
     A = np.column_stack([np.ones(len(xy)), xy])
