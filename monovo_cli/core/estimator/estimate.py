@@ -45,7 +45,7 @@ iterates over them share one point layout and are read together.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import cv2
@@ -83,16 +83,18 @@ class KeyLevel:
     box_rays: np.ndarray
 
     @classmethod
-    def from_points(cls, points: LevelPoints) -> KeyLevel:
+    def from_points(cls, points: LevelPoints, Jt: np.ndarray | None = None) -> KeyLevel:
         """The level of ``points`` (keyframe camera, one pyramid level) with its rows evaluated
-        once (docs/algorithm.md section 3: inverse compositional, a constant O)."""
+        once (docs/algorithm.md section 3: inverse compositional, a constant O); ``Jt`` (8,
+        N) the rows where they are known already (:meth:`subset`)."""
         cam = points.camera
-        D = distortion_jacobian(cam, points.X) if cam.has_distortion and len(points) else None
-        O = observation_matrix(points.X, points.grad, cam.fx, cam.fy, D)
-        Jt = np.empty((8, len(points)), np.float32)
-        Jt[:6] = O.T
-        Jt[6] = points.intensity
-        Jt[7] = 1.0
+        if Jt is None:
+            D = distortion_jacobian(cam, points.X) if cam.has_distortion and len(points) else None
+            O = observation_matrix(points.X, points.grad, cam.fx, cam.fy, D)
+            Jt = np.empty((8, len(points)), np.float32)
+            Jt[:6] = O.T
+            Jt[6] = points.intensity
+            Jt[7] = 1.0
         uv = points.uv
         if len(points):
             u, v = uv[:, 0], uv[:, 1]
@@ -109,6 +111,14 @@ class KeyLevel:
             probes = box_rays = np.zeros((0, 3))
             m = np.zeros(3)
         return cls(points, Jt, probes, pixel_grid(uv[:, 0], uv[:, 1]), m, box_rays)
+
+    def subset(self, index: np.ndarray) -> KeyLevel:
+        """The level of the points ``index`` (an index array) alone: their rows sliced, not
+        evaluated again (each point's row is its own), the rest as :meth:`from_points`."""
+        pts = self.points
+        sub = replace(pts, uv=pts.uv[index], X=pts.X[index], intensity=pts.intensity[index],
+                      grad=pts.grad[index])
+        return KeyLevel.from_points(sub, np.ascontiguousarray(self.Jt[:, index]))
 
     @property
     def J(self) -> np.ndarray:

@@ -12,8 +12,6 @@ the rows above and below, disagree by about what the model error moves the whole
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numpy as np
 
 from monovo_cli.core.estimator.estimate import Estimate, KeyLevel, estimate_motion
@@ -48,10 +46,7 @@ def split_half_fits(level: KeyLevel, image: np.ndarray, est: Estimate,
         for half in (inview[coord < median], inview[coord >= median]):
             if len(half) < max(options.min_valid_points, 8):
                 break
-            sub = KeyLevel.from_points(replace(pts, uv=pts.uv[half], X=pts.X[half],
-                                               intensity=pts.intensity[half],
-                                               grad=pts.grad[half]))
-            fit = estimate_motion((sub,), (image,), est.cur_from_key, options=options,
+            fit = estimate_motion((level.subset(half),), (image,), est.cur_from_key, options=options,
                                   gain=est.gain, bias=est.bias)
             if not fit.converged or fit.finest_iterations >= options.max_iterations:
                 break
