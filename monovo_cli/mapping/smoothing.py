@@ -24,7 +24,9 @@ points (its ``samples``): the least squares the images themselves would have sol
 the tracker had the smoothed plane then. (On a drive whose frame 0 was a nominal mount, the
 first keyframes' tilts move by tenths of a degree in hindsight, and their motions with
 them: a rotation of the whole trajectory of 20-50 mdeg without this; benchmarks.initial_pose.)
-A keyframe without samples (a record from elsewhere) has its translations scaled alone. Each
+A keyframe without samples (its points lifted off its plane by a terrain grid, or a record
+from elsewhere), and every keyframe of a drive whose ground the re-anchors did not see as a
+plane (:func:`smooth_drive`'s ``tilts``), has its translations scaled alone. Each
 keyframe's pose is its predecessor's re-read pose composed with the re-read motion between
 the two, and every frame's pose its keyframe's composed with its own re-read motion from
 it, so the trajectory stays one rigid chain.
