@@ -393,13 +393,14 @@ class Odometry:
             model += np.outer(jump, jump)
         for half, _ in spread:  # a captured frame's model error, as its halves disagree
             model += np.outer(half, half)
-        if self._handed_over is not None:
+        if self._handed_over is not None and not reanchor:
             # The first motion against a keyframe: its points sit on the plane (or the grid)
             # the re-anchor fitted, with that fit's model error, and over one frame's
             # baseline the robust weights do not yet set the unmodelled relief apart (on
             # rocks: 2.5-2.8 mdeg off on 5 cm, 6-8.5 std, where the rows after it are within
-            # 2). It carries the error its re-anchor measured on its own row (not what that
-            # row carried in turn: on a drive that re-anchors every frame it would pile up).
+            # 2). It carries the error its re-anchor measured on its own row. A row that
+            # re-anchors in turn states its own (counting both made a MER drive's std, which
+            # re-anchors on nearly every frame, 1.4-1.9x wider still).
             cov = cov + self._handed_over
         self._handed_over = None
         cov = cov + model
