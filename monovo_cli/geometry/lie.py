@@ -41,6 +41,20 @@ def so3_exp(w: np.ndarray) -> np.ndarray:
     return np.eye(3) + a * W + b * W @ W
 
 
+def so3_exp_rows(w: np.ndarray) -> np.ndarray:
+    """(n, 3, 3): :func:`so3_exp` of every rotation vector of ``w`` (n, 3) at once (Rodrigues;
+    below 1e-4 rad the coefficients' series)."""
+    t2 = np.einsum("ni,ni->n", w, w)
+    small = t2 < 1e-8
+    t = np.sqrt(np.where(small, 1.0, t2))
+    a = np.where(small, 1.0 - t2 / 6.0, np.sin(t) / t)
+    b = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(t)) / np.where(small, 1.0, t2))
+    W = np.zeros((len(w), 3, 3))
+    W[:, 0, 1], W[:, 0, 2], W[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+    W[:, 1, 0], W[:, 2, 0], W[:, 2, 1] = w[:, 2], -w[:, 1], w[:, 0]
+    return np.eye(3) + a[:, None, None] * W + b[:, None, None] * (W @ W)
+
+
 def so3_log(R: np.ndarray) -> np.ndarray:
     """Rotation vector (3,), radians, of the rotation matrix ``R``; angle in [0, pi]."""
     R = np.asarray(R, dtype=float)

@@ -58,7 +58,7 @@ from typing import Protocol
 import numpy as np
 
 from monovo_cli.core.plane.belief import PlaneLink, from_chart, smoothed_corrections
-from monovo_cli.geometry.lie import se3_inv
+from monovo_cli.geometry.lie import se3_inv, so3_exp_rows
 from monovo_cli.geometry.plane import Plane
 
 
@@ -275,29 +275,11 @@ def _reread_all(jobs: Sequence[tuple[np.ndarray, Plane, Plane, np.ndarray | None
         H = Jt @ J + 1e-12 * np.eye(6)
         step = -np.linalg.solve(H, Jt @ r.reshape(len(J), -1, 1))[..., 0]
         t2 = t2 + (R2 @ step[:, 3:, None])[..., 0]
-        R2 = R2 @ _so3_exp_rows(step[:, :3])
+        R2 = R2 @ so3_exp_rows(step[:, :3])
     M[:, :3, :3], M[:, :3, 3] = R2, t2
     for j, part in zip(where, np.split(M, np.cumsum(n)[:-1])):
         out[j] = part
     return out
-
-
-def _so3_exp_rows(w: np.ndarray) -> np.ndarray:
-    """(n, 3, 3): the rotation of every rotation vector of ``w`` (n, 3) (Rodrigues; the
-    series below 1e-4 rad, the steps of a re-reading being far smaller)."""
-    t2 = np.einsum("ni,ni->n", w, w)
-    small = t2 < 1e-8
-    t = np.sqrt(np.where(small, 1.0, t2))
-    a = np.where(small, 1.0 - t2 / 6.0, np.sin(t) / t)
-    b = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(t)) / np.where(small, 1.0, t2))
-    W = np.zeros((len(w), 3, 3))
-    W[:, 0, 1], W[:, 0, 2], W[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
-    W[:, 1, 0], W[:, 2, 0], W[:, 2, 1] = w[:, 2], -w[:, 1], w[:, 0]
-    return np.eye(3) + a[:, None, None] * W + b[:, None, None] * (W @ W)
-
-
-def _samples(key: Anchored) -> np.ndarray | None:
-    return getattr(key, "samples", None)
 
 
 def smoothed_key_poses(keys: Sequence[Anchored], planes: Sequence[Plane],
@@ -356,7 +338,7 @@ def smooth_drive(index: Sequence[int], world_from_cam: np.ndarray,
     log_ratios = ([_mean_log_distance_ratio(k, rel) for k, (_, rel) in zip(anchored, parts)]
                   if segments else None)
     planes = smoothed_planes(anchored, log_ratios)
-    samples = [_samples(k) if tilts else None for k in anchored]
+    samples = [k.samples if tilts else None for k in anchored]
     key_poses = smoothed_key_poses(anchored, planes, samples)
     out = W.copy()
     reread = _reread_all([(rel, key.plane, planes[a], samples[a])

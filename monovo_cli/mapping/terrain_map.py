@@ -124,6 +124,7 @@ class _Chunk:
     world_from_key: np.ndarray
     plane: Plane
     link: PlaneLink | None
+    samples: np.ndarray | None = None  # (none kept: hindsight scales its motions alone)
 
 
 class TerrainMap:
