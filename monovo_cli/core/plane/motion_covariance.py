@@ -201,10 +201,15 @@ class PlaneCovarianceCalibration:
         (what they hold beyond both covariances, per angle, within PLANAR_SEEN_DEG): the
         ground seen is the plane model's, and the keyframes' tilts measure one plane (True
         before any re-anchor)."""
+        seen = self._seen_variance()
+        return seen is None or seen <= math.radians(PLANAR_SEEN_DEG) ** 2
+
+    def _seen_variance(self) -> float | None:
+        """(rad^2) how far, per tilt angle, the ground seen departs from the carried planes
+        (the median excess's trace shared by the two); None before any re-anchor measured it."""
         if not self._seen_excess:
-            return True
-        seen = 0.5 * float(np.trace(_median_excess(self._seen_excess)))
-        return seen <= math.radians(PLANAR_SEEN_DEG) ** 2
+            return None
+        return 0.5 * float(np.trace(_median_excess(self._seen_excess)))
 
     def reported(self, covariance: np.ndarray) -> np.ndarray:
         """``covariance`` (3, 3), the keyframe plane's in its chart (m, rad), calibrated: the
@@ -221,9 +226,8 @@ class PlaneCovarianceCalibration:
                 g = max(1.0, math.sqrt(float(np.median(self._distance_nis)) / CHI2_1_MEDIAN))
             if self._tilt_excess:
                 Q = _median_excess(self._tilt_excess) / (2.0 * (1.0 - TILT_PERSISTENCE))
-            seen = None
-            if self._seen_excess:  # its size, not its direction (which turns along a drive)
-                seen = np.eye(2) * 0.5 * np.trace(_median_excess(self._seen_excess))
+            v = self._seen_variance()  # its size, not its direction (which turns along a drive)
+            seen = None if v is None else np.eye(2) * v
             self._calibration = g, Q, seen
         g, Q, seen = self._calibration
         P = np.array(covariance, dtype=float)
