@@ -54,7 +54,8 @@ def mean_mount(seq: Path) -> Plane:
     """The mean over a flat drive's frames of the ground in the camera (mean normal,
     normalised, and mean distance), from frame 0's true ground (``seq`` written with
     ``--init-pose frame0``) and the true motion: the drive's own mean mount."""
-    n0, d0 = load_init(seq / "init.yaml").plane.normal, load_init(seq / "init.yaml").plane.distance
+    plane = load_init(seq / "init.yaml").plane
+    n0, d0 = plane.normal, plane.distance
     _, gt = read_tum(seq / "groundtruth.tum")
     normals = np.array([g[:3, :3].T @ n0 for g in gt])
     n = normals.mean(axis=0)
