@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from monovo_cli.core.estimator.ground import LevelPoints
@@ -29,7 +30,7 @@ from monovo_cli.core.plane.belief import PlaneBelief
 from monovo_cli.geometry.lie import se3_exp
 from monovo_cli.geometry.plane import Plane, tangent_basis
 from monovo_cli.image.gradients import sobel_gradient
-from monovo_cli.image.sampling import sample_bilinear
+from monovo_cli.image.sampling import sample_bilinear_stack
 
 REGULARISER_DEG = 5.0  # std of the numerical prior that keeps the steps finite (removed after)
 
@@ -48,12 +49,12 @@ class PlaneFit:
     measured: PlaneBelief | None
 
 
-def _system(rays: np.ndarray, I_key: np.ndarray, cam, image: np.ndarray, gx_img: np.ndarray,
-            gy_img: np.ndarray, T: np.ndarray, n: np.ndarray, d: float, gain: float, bias: float,
-            opts: EstimatorOptions):
+def _system(rays: np.ndarray, I_key: np.ndarray, cam, stack: np.ndarray, T: np.ndarray,
+            n: np.ndarray, d: float, gain: float, bias: float, opts: EstimatorOptions):
     """Residuals and rows at ``(T, n, gain, bias)``: ``(J (M, 10), r (M,), w (M,), scale)`` over
     the valid points, or None when too few are valid. Columns: the left twist of T, the
-    normal along ``tangent_basis(n)``, gain, bias."""
+    normal along ``tangent_basis(n)``, gain, bias. ``stack`` (H, W, 3) float32: the current
+    frame and its Sobel gradients."""
     denom = rays @ n
     if np.any(denom <= 1e-9):
         return None
@@ -63,9 +64,8 @@ def _system(rays: np.ndarray, I_key: np.ndarray, cam, image: np.ndarray, gx_img:
     u, v, front = project_in_front(cam, Xc)
     z = Xc[:, 2]
     iz = np.where(front, 1.0 / np.where(front, z, 1.0), 0.0)
-    vals, valid = sample_bilinear(image, u, v)
-    gx, _ = sample_bilinear(gx_img, u, v)
-    gy, _ = sample_bilinear(gy_img, u, v)
+    samples, valid = sample_bilinear_stack(stack, u, v)
+    vals, gx, gy = samples.T
     valid &= front
     if np.count_nonzero(valid) < max(opts.min_valid_points, 50):
         return None
@@ -136,7 +136,7 @@ def refine_plane_and_motion(points: LevelPoints, image: np.ndarray, cur_from_key
     """
     opts = options or EstimatorOptions()
     cam = points.camera
-    gx_img, gy_img = sobel_gradient(image)
+    stack = cv2.merge([np.ascontiguousarray(image, dtype=np.float32), *sobel_gradient(image)])
     step_k = max(1, -(-len(points) // max_points))
     rays = points.X[::step_k] / points.X[::step_k, 2:3]
     I_key = points.intensity[::step_k].astype(np.float64)
@@ -147,7 +147,7 @@ def refine_plane_and_motion(points: LevelPoints, image: np.ndarray, cur_from_key
     inv_s2 = 1.0 / math.radians(REGULARISER_DEG) ** 2
     system = None
     for _ in range(iterations):
-        system = _system(rays, I_key, cam, image, gx_img, gy_img, T, n, d, gain, bias, opts)
+        system = _system(rays, I_key, cam, stack, T, n, d, gain, bias, opts)
         if system is None:
             break
         Jv, rv, wv, scale = system
@@ -178,7 +178,7 @@ def refine_plane_and_motion(points: LevelPoints, image: np.ndarray, cur_from_key
     refined = Plane(n, d)
     measured = None
     if system is not None:
-        final = _system(rays, I_key, cam, image, gx_img, gy_img, T, n, d, gain, bias, opts)
+        final = _system(rays, I_key, cam, stack, T, n, d, gain, bias, opts)
         if final is not None:
             measured = _measurement(refined, final[0], final[1], final[2])
     return PlaneFit(T, refined, float(gain), float(bias), measured)
