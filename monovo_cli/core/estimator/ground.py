@@ -121,14 +121,15 @@ def _even_spread(score: np.ndarray, cap: int, area: int, per_block: int = 4) -> 
     h, w = score.shape
     s = max(2, int(np.sqrt(per_block * area / cap)))
     if per_block >= s * s:  # every block would keep all its candidates: the strongest overall
-        ys, xs = np.nonzero(positive)
-        vals = score[ys, xs]
+        flat = score.ravel()  # (flat indices: half the time of np.nonzero's row/column pairs)
+        at = np.flatnonzero(positive.ravel())
+        vals = flat[at]
         kth = len(vals) - cap
         threshold = np.partition(vals, kth)[kth]  # the cap-th largest
         keep = vals > threshold
         ties = np.flatnonzero(vals == threshold)[:cap - int(np.count_nonzero(keep))]
         keep[ties] = True  # (those equal to it first in row-major order)
-        return ys[keep], xs[keep]
+        return np.divmod(at[keep], w)
     hb, wb = -(-h // s), -(-w // s)
     padded = np.zeros((hb * s, wb * s), np.float32)
     padded[:h, :w] = score
@@ -181,9 +182,10 @@ def select_points(image: np.ndarray, camera: PinholeCamera, plane: Plane, corner
         uv, X, ys, xs = uv[good], X[good], ys[good], xs[good]
     if spline:
         gx, gy = spline_gradient(image)
+    at = ys * w + xs  # (one flat index for the three gathers)
     return LevelPoints(level=level, camera=camera, uv=uv, X=X,
-                       intensity=image[ys, xs].astype(np.float32),
-                       grad=np.stack([gx[ys, xs], gy[ys, xs]], 1).astype(np.float32),
+                       intensity=image.ravel()[at].astype(np.float32),
+                       grad=np.stack([gx.ravel()[at], gy.ravel()[at]], 1).astype(np.float32),
                        corners=corners)
 
 
