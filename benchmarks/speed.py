@@ -4,6 +4,7 @@
     python -m benchmarks.speed --sizes 512x512 --frames 100
     python -m benchmarks.speed --memory                # only peak RSS over 500 and 5000 frames
                                                        # (renders 5000 frames once: ~10 min)
+    python -m benchmarks.speed --threads 2 --no-profile  # both on two threads
 
 For each size a ``monovo synth --preset drive`` sequence (noise variance 10, seed 0) is
 rendered (not timed), then, on one core (OpenCV, BLAS and OpenMP on one thread):
@@ -24,6 +25,12 @@ rendered (not timed), then, on one core (OpenCV, BLAS and OpenMP on one thread):
   point selection at re-anchoring) and other. Profiling slows Python-heavy code more than
   numpy/OpenCV calls, so shares are approximate; ms/frame are the shares times the
   unprofiled end-to-end time.
+
+``--threads N``: both methods on the same N threads instead: OpenCV's thread count for
+monovo and ECC alike (the process runs both), and ``monovo track --threads N`` (frames
+decoded ahead on a thread of their own from 2 on). BLAS stays on one thread (monovo pins it
+while tracking; ECC's small matrices do not use it). On one core (the default) monovo's
+reader thread runs as ``monovo track`` runs it, all cores: the CPU time in brackets counts it.
 
 ``--memory``: peak resident memory (the child's own VmHWM, read at its exit) of a
 ``monovo track SEQ -o OUT -q`` subprocess over the first 500 and all 5000 frames of one
@@ -72,11 +79,12 @@ STAGE_ORDER = ("decode", "pyramid", "warp+sample", "normal equations", "robust w
 # --------------------------------------------------------------------------- timing
 
 
-def end_to_end(seq: Path, out: Path) -> dict:
-    """``runner.track_sequence`` timed as a whole and per frame (first to last frame done)."""
+def end_to_end(seq: Path, out: Path, threads: int | None = None) -> dict:
+    """``runner.track_sequence`` timed as a whole and per frame (first to last frame done);
+    ``threads`` its ``threads`` (None: all cores, as ``monovo track``)."""
     stamps: list[float] = []
     with Stopwatch() as watch:
-        s = track_sequence(seq, None, out, TrackOptions(), overwrite=True,
+        s = track_sequence(seq, None, out, TrackOptions(), overwrite=True, threads=threads,
                            progress=lambda done, total: stamps.append(time.perf_counter()))
     _, est = read_tum(out / "trajectory.tum")
     _, gt = read_tum(seq / "groundtruth.tum")
@@ -204,10 +212,12 @@ def memory(tmp: Path, counts: list[int], seed: int) -> list[tuple[int, float, fl
     return rows
 
 
-def measure(seq: Path, out: Path) -> tuple[dict, tuple[float, float], tuple[float, float]]:
-    """One drive's speed figures: :func:`end_to_end` (into ``out``), :func:`estimator_only`
-    frames/s (wall, CPU) and the ECC peer's frames/s (wall, CPU) on the same PNGs."""
-    e2e = end_to_end(seq, out)
+def measure(seq: Path, out: Path, threads: int | None = None
+            ) -> tuple[dict, tuple[float, float], tuple[float, float]]:
+    """One drive's speed figures: :func:`end_to_end` (into ``out``, with ``threads``),
+    :func:`estimator_only` frames/s (wall, CPU) and the ECC peer's frames/s (wall, CPU) on
+    the same PNGs."""
+    e2e = end_to_end(seq, out, threads)
     est_fps = estimator_only(seq)
     ecc = peer_on_drive(EccPeer(), seq)
     return e2e, est_fps, (ecc.count / ecc.seconds, ecc.count / ecc.cpu)
@@ -243,8 +253,16 @@ def main() -> None:
     ap.add_argument("--memory", action="store_true",
                     help="only the peak RSS over --memory-frames frames (no speed tables)")
     ap.add_argument("--memory-frames", type=int, nargs="+", default=[500, 5000])
+    ap.add_argument("--threads", type=int, default=None,
+                    help="both methods on N threads (OpenCV's, and monovo's --threads N); "
+                         "default: one core")
     args = ap.parse_args()
-    one_core()
+    if args.threads is None:
+        one_core()
+    else:
+        import cv2
+
+        cv2.setNumThreads(args.threads)
     print(f"Machine: {machine()}; {load()} at the start\n")
     speed_rows, stage_cols = [], []
     with tempfile.TemporaryDirectory() as tmp_name:
@@ -254,7 +272,7 @@ def main() -> None:
             seq = tmp / f"drive_{size}"
             synthesize(seq, preset="drive", frames=args.frames, size=(w, h), noise_var=10.0,
                        seed=args.seed)
-            e2e, est_fps, ecc_fps = measure(seq, tmp / f"out_{size}")
+            e2e, est_fps, ecc_fps = measure(seq, tmp / f"out_{size}", args.threads)
             speed_rows.append((size, e2e, est_fps, ecc_fps))
             if not args.no_profile:
                 shares, top = profile_stages(seq, tmp / f"out_{size}")
@@ -269,7 +287,8 @@ def main() -> None:
 
 
 def print_speed(args, speed_rows, stage_cols) -> None:
-    print(f"### Frames/s on one core ({args.frames}-frame drives, noise variance 10, seed "
+    where = "one core" if args.threads is None else f"{args.threads} threads each"
+    print(f"### Frames/s on {where} ({args.frames}-frame drives, noise variance 10, seed "
           f"{args.seed}); wall clock, CPU time of this process in brackets\n")
     print(SPEED_HEAD)
     print("|" + " --- |" * 11)
