@@ -27,7 +27,8 @@ keyframe) counts for its own part only, so the parts and "other" add up to the f
 The frame loop runs from the first frame's decode to the last frame's progress call; the
 parts are its time divided by the frames. **Start-up** is a fresh ``python -m monovo_cli
 track SEQ -o OUT`` up to the first frame's decode (the interpreter, the imports, init.yaml
-and the output folder; median of three), **finish** what the call does after the last
+and the output folder; median of three, the modules' bytecode written as an installed
+package has it), **finish** what the call does after the last
 frame (smoothing, trajectory files, trajectory.png, report.html).
 
 **The limit** (issue 26): decoding a frame plus one pass over the points, i.e. the decode
@@ -290,16 +291,21 @@ runpy.run_module("monovo_cli", run_name="__main__")
 
 def startup(seq: Path, out: Path, repeats: int = 3) -> tuple[float, float, float]:
     """Median seconds of a fresh ``monovo track SEQ -o OUT`` from its start to the first
-    frame's decode: (in all, the interpreter's own start, the imports)."""
+    frame's decode: (in all, the interpreter's own start, the imports). With the modules'
+    bytecode, as ``pip install`` leaves a package: the children may write it (an environment
+    with PYTHONDONTWRITEBYTECODE would compile every module in every run, doubling monovo's
+    own import time), and a first, untimed run writes it."""
     env = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1",
            "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
     rows = []
-    for i in range(repeats):
+    for i in range(-1, repeats):
         t0 = time.monotonic()
         run = subprocess.run([sys.executable, "-c", _STARTUP, str(seq), str(out) + f"_{i}"],
                              env=env, cwd=ROOT, capture_output=True, text=True, check=True)
         t_start, t_imported, t_read = (float(v) for v in run.stdout.split())
-        rows.append((t_read - t0, t_start - t0, t_imported - t_start))
+        if i >= 0:
+            rows.append((t_read - t0, t_start - t0, t_imported - t_start))
     return tuple(statistics.median(r[k] for r in rows) for k in range(3))
 
 
