@@ -5,6 +5,7 @@
     python -m benchmarks.speed --memory                # only peak RSS over 500 and 5000 frames
                                                        # (renders 5000 frames once: ~10 min)
     python -m benchmarks.speed --threads 2 --no-profile  # both on two threads
+    python -m benchmarks.speed --sizes 512x512 --frames 100 --no-profile --repeats 5
 
 For each size a ``monovo synth --preset drive`` sequence (noise variance 10, seed 0) is
 rendered (not timed), then, on one core (OpenCV, BLAS and OpenMP on one thread):
@@ -32,6 +33,10 @@ decoded ahead on a thread of their own from 2 on). BLAS stays on one thread (mon
 while tracking; ECC's small matrices do not use it). On one core (the default) monovo's
 reader thread runs as ``monovo track`` runs it, all cores: the CPU time in brackets counts it.
 
+``--repeats K``: the measurement of each size K times over, monovo and ECC alternating (a
+row each), then the ratios' median and range per size: on a shared machine whose speed
+drifts within minutes, one pair says little.
+
 ``--memory``: peak resident memory (the child's own VmHWM, read at its exit) of a
 ``monovo track SEQ -o OUT -q`` subprocess over the first 500 and all 5000 frames of one
 512x512 drive (the 500-frame sequence is a folder of symlinks to the first frames).
@@ -43,6 +48,7 @@ import argparse
 import cProfile
 import os
 import pstats
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -253,6 +259,8 @@ def main() -> None:
     ap.add_argument("--memory", action="store_true",
                     help="only the peak RSS over --memory-frames frames (no speed tables)")
     ap.add_argument("--memory-frames", type=int, nargs="+", default=[500, 5000])
+    ap.add_argument("--repeats", type=int, default=1,
+                    help="measure each size this many times, alternating (default 1)")
     ap.add_argument("--threads", type=int, default=None,
                     help="both methods on N threads (OpenCV's, and monovo's --threads N); "
                          "default: one core")
@@ -272,8 +280,9 @@ def main() -> None:
             seq = tmp / f"drive_{size}"
             synthesize(seq, preset="drive", frames=args.frames, size=(w, h), noise_var=10.0,
                        seed=args.seed)
-            e2e, est_fps, ecc_fps = measure(seq, tmp / f"out_{size}", args.threads)
-            speed_rows.append((size, e2e, est_fps, ecc_fps))
+            for _ in range(max(1, args.repeats)):
+                e2e, est_fps, ecc_fps = measure(seq, tmp / f"out_{size}", args.threads)
+                speed_rows.append((size, e2e, est_fps, ecc_fps))
             if not args.no_profile:
                 shares, top = profile_stages(seq, tmp / f"out_{size}")
                 stage_cols.append((size, shares, top, 1000.0 / e2e["fps"]))
@@ -294,6 +303,14 @@ def print_speed(args, speed_rows, stage_cols) -> None:
     print("|" + " --- |" * 11)
     for row in speed_rows:
         print(speed_row(*row))
+    if args.repeats > 1:
+        print()
+        for size in dict.fromkeys(size for size, *_ in speed_rows):
+            wall = [e["fps"] / ecc[0] for s, e, _, ecc in speed_rows if s == size]
+            cpu = [e["fps_cpu"] / ecc[1] for s, e, _, ecc in speed_rows if s == size]
+            print(f"{size}: monovo / ECC over {len(wall)} pairs, median {statistics.median(wall):.2f}x "
+                  f"wall ({min(wall):.2f}-{max(wall):.2f}), {statistics.median(cpu):.2f}x CPU "
+                  f"({min(cpu):.2f}-{max(cpu):.2f})")
     print(f"\n({load()} at the end.)")
     if stage_cols:
         print("\n### Time per frame by stage (cProfile of the end-to-end run; % of the profiled "
