@@ -15,6 +15,13 @@ def sobel_gradient(image: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return gx, gy
 
 
+def with_sobel_gradient(image: np.ndarray) -> np.ndarray:
+    """(H, W, 3) float32: ``image`` (H, W) and its :func:`sobel_gradient` as the planes of one
+    image, to be sampled at once (:func:`~monovo_cli.image.sampling.sample_bilinear`)."""
+    image = np.ascontiguousarray(image, dtype=np.float32)
+    return cv2.merge([image, *sobel_gradient(image)])
+
+
 _BSPLINE_POLE = np.sqrt(3.0) - 2.0
 
 

@@ -33,33 +33,22 @@ def sample_at(image: np.ndarray, grid: np.ndarray, n: int, flag: int) -> tuple[n
     ``grid`` (rows, GRID_COLUMNS, 2) float32 holds pixel positions (u, v), row-major. Returns
     the values (n,) float32 (0 where invalid) and the validity (n,) bool: every pixel the
     kernel weights inside the image (points within a few pixels of the border are dropped).
+    A stack of planes (H, W, C) (an image and its gradients) is sampled in the same pass,
+    values (n, C): OpenCV weights every plane alike, and the first plane's border says
+    which are valid.
     """
+    planes = image.shape[2:]  # (): one plane; (C,): a stack
     if flag in _REACH:
         lo, hi = _REACH[flag]
-        h, w = image.shape
+        h, w = image.shape[:2]
         valid = cv2.inRange(grid, (lo, lo), (w - 1 - hi, h - 1 - hi)).reshape(-1)[:n] != 0
         vals = cv2.remap(image, grid, None, flag,
-                         borderMode=cv2.BORDER_REPLICATE).reshape(-1)[:n]
+                         borderMode=cv2.BORDER_REPLICATE).reshape((-1,) + planes)[:n]
     else:
         vals = cv2.remap(image, grid, None, flag, borderMode=cv2.BORDER_CONSTANT,
-                         borderValue=OUTSIDE).reshape(-1)[:n]
-        valid = np.abs(vals) < _VALID_BELOW
-    vals *= valid
-    return vals, valid
-
-
-def sample_bilinear_stack(stack: np.ndarray, u: np.ndarray, v: np.ndarray
-                          ) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`sample_bilinear` of the C planes of ``stack`` (H, W, C) float32 at once (an
-    image and its gradients, ``cv2.merge``-d): values (N, C) float32 (0 where invalid) and
-    validity (N,) bool. One remap and one grid instead of C: the same values, bit for bit
-    (OpenCV weights every plane alike; a test checks it)."""
-    c = stack.shape[2]
-    vals = cv2.remap(stack, pixel_grid(u, v), None, cv2.INTER_LINEAR,
-                     borderMode=cv2.BORDER_CONSTANT, borderValue=(OUTSIDE,) * c)
-    vals = vals.reshape(-1, c)[:len(u)]
-    valid = np.abs(vals[:, 0]) < _VALID_BELOW
-    vals *= valid[:, None]
+                         borderValue=OUTSIDE).reshape((-1,) + planes)[:n]
+        valid = np.abs(vals[:, 0] if planes else vals) < _VALID_BELOW
+    vals *= valid[:, None] if planes else valid
     return vals, valid
 
 
@@ -80,7 +69,8 @@ def pixel_grid(u: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 def sample_bilinear(image: np.ndarray, u: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Bilinear interpolation of ``image`` (H, W) float32 at pixels (u, v) (N,): values (N,)
-    float32 (0 where invalid) and validity (N,) bool (inside [0, W-1] x [0, H-1]). OpenCV 5's
-    bilinear remap does not round the positions (no 1/32 px quantisation)."""
+    float32 (0 where invalid) and validity (N,) bool (inside [0, W-1] x [0, H-1]); a stack
+    (H, W, C) gives values (N, C), one remap for all its planes (:func:`sample_at`). OpenCV
+    5's bilinear remap does not round the positions (no 1/32 px quantisation)."""
     return sample_at(np.ascontiguousarray(image, dtype=np.float32), pixel_grid(u, v), len(u),
                      cv2.INTER_LINEAR)

@@ -33,7 +33,6 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from functools import lru_cache
 
-import cv2
 import numpy as np
 
 from monovo_cli.core.estimator.estimate import Estimate, KeyLevel, estimate_motion
@@ -42,8 +41,8 @@ from monovo_cli.core.estimator.robust import mad_scale, robust_weights
 from monovo_cli.core.options import EstimatorOptions
 from monovo_cli.geometry.lie import se3_exp
 from monovo_cli.geometry.plane import Plane
-from monovo_cli.image.gradients import sobel_gradient
-from monovo_cli.image.sampling import sample_bilinear_stack
+from monovo_cli.image.gradients import with_sobel_gradient
+from monovo_cli.image.sampling import sample_bilinear
 
 GRID_CELL = 0.4  # m between the grid's vertices on the ground
 MAX_VERTICES_PER_SIDE = 32
@@ -272,8 +271,7 @@ def solve_terrain_grid(level: KeyLevel, plane: Plane, image: np.ndarray,
     rays = X0 / X0[:, 2:3]
     dz_dh = -rays / (rays @ plane.normal)[:, None]  # dX/dh (N, 3), keyframe camera
     prior = _prior(terrain_grid, X0, idx, bw)
-    image = np.ascontiguousarray(image, dtype=np.float32)
-    stack = cv2.merge([image, *sobel_gradient(image)])  # sampled together: one remap
+    stack = with_sobel_gradient(image)  # sampled together: one remap
     cam = pts.camera
     T = np.array(cur_from_key, dtype=np.float64)
     h = terrain_grid.h.ravel().copy()
@@ -283,7 +281,7 @@ def solve_terrain_grid(level: KeyLevel, plane: Plane, image: np.ndarray,
         X = X0 + dz_dh * (np.sum(h[idx] * bw, axis=1))[:, None]
         Xc = X @ T[:3, :3].T + T[:3, 3]
         u, v, front = project_in_front(cam, Xc)
-        samples, ok = sample_bilinear_stack(stack, u, v)
+        samples, ok = sample_bilinear(stack, u, v)
         vals, gx, gy = samples.T
         ok &= front
         if np.count_nonzero(ok) < max(opts.min_valid_points, 50):

@@ -19,7 +19,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 
 from monovo_cli.core.estimator.ground import LevelPoints
@@ -29,8 +28,8 @@ from monovo_cli.core.options import EstimatorOptions
 from monovo_cli.core.plane.belief import PlaneBelief
 from monovo_cli.geometry.lie import se3_exp
 from monovo_cli.geometry.plane import Plane, tangent_basis
-from monovo_cli.image.gradients import sobel_gradient
-from monovo_cli.image.sampling import sample_bilinear_stack
+from monovo_cli.image.gradients import with_sobel_gradient
+from monovo_cli.image.sampling import sample_bilinear
 
 REGULARISER_DEG = 5.0  # std of the numerical prior that keeps the steps finite (removed after)
 
@@ -64,7 +63,7 @@ def _system(rays: np.ndarray, I_key: np.ndarray, cam, stack: np.ndarray, T: np.n
     u, v, front = project_in_front(cam, Xc)
     z = Xc[:, 2]
     iz = np.where(front, 1.0 / np.where(front, z, 1.0), 0.0)
-    samples, valid = sample_bilinear_stack(stack, u, v)
+    samples, valid = sample_bilinear(stack, u, v)
     vals, gx, gy = samples.T
     valid &= front
     if np.count_nonzero(valid) < max(opts.min_valid_points, 50):
@@ -136,7 +135,7 @@ def refine_plane_and_motion(points: LevelPoints, image: np.ndarray, cur_from_key
     """
     opts = options or EstimatorOptions()
     cam = points.camera
-    stack = cv2.merge([np.ascontiguousarray(image, dtype=np.float32), *sobel_gradient(image)])
+    stack = with_sobel_gradient(image)  # sampled together: one remap
     step_k = max(1, -(-len(points) // max_points))
     rays = points.X[::step_k] / points.X[::step_k, 2:3]
     I_key = points.intensity[::step_k].astype(np.float64)

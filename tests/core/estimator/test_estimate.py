@@ -62,14 +62,12 @@ def test_stacked_planes_sample_as_each_plane_alone():
     validity bit for bit, at positions inside, on and beyond the border."""
     import cv2
 
-    from monovo_cli.image.sampling import sample_bilinear_stack
-
     rng = np.random.default_rng(5)
     planes = [(rng.random((40, 50)) * 255).astype(np.float32) for _ in range(3)]
     planes[1] -= 128.0  # (signed, as gradients are)
     u = np.r_[rng.random(3000) * 53 - 1.5, 0.0, 49.0, -1e-4, np.nan]
     v = np.r_[rng.random(3000) * 43 - 1.5, 0.0, 39.0, 5.0, 3.0]
-    vals, valid = sample_bilinear_stack(cv2.merge(planes), u, v)
+    vals, valid = sample_bilinear(cv2.merge(planes), u, v)
     assert 0 < np.count_nonzero(valid) < len(u)
     for c, plane in enumerate(planes):
         alone, ok = sample_bilinear(plane, u, v)
