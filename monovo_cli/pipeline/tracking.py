@@ -263,25 +263,16 @@ class Tracking:
         """(n, 4, 4) the poses to write of the n frames recorded so far: the lost frames
         moved with the gaps closed after them (:func:`~monovo_cli.mapping.gaps.close_gaps`),
         then smoothed in hindsight over them (``smooth``)."""
-        rec = self._recorder
-        W = close_gaps(rec.index, rec.world_from_cam.reshape(-1, 4, 4), rec.gaps)
-        if not self.smooth:
-            return W
-        with one_blas_thread():
-            return smooth_drive(rec.index, W, [(k.index, k) for k in rec.keyframes],
-                                tilts=self._odometry.ground_planar).world_from_cam
+        closed, drive = self._hindsight()
+        return closed if drive is None else drive.world_from_cam
 
     def result(self, seconds: float = 0.0) -> TrackRun:
         """The run of the frames recorded, its lost frames moved with the gaps closed after
         them and smoothed in hindsight once (``smooth``); the terrain (when kept) is
         finished against the last frame and placed with the same smoothing (:attr:`drive`)."""
         rec = self._recorder
-        W = rec.world_from_cam.reshape(-1, 4, 4)
-        closed = close_gaps(rec.index, W, rec.gaps)
+        closed, self.drive = self._hindsight()
         with one_blas_thread():
-            self.drive = (smooth_drive(rec.index, closed, [(k.index, k) for k in rec.keyframes],
-                                       tilts=self._odometry.ground_planar)
-                          if self.smooth and len(rec) else None)
             if self.drive is not None and self.drive.key_index:
                 log.info("the ground at frame %d as the whole drive measured it: %s; "
                          "init.yaml gave %s", self.drive.key_index[0],
@@ -289,8 +280,20 @@ class Tracking:
                          _ground_words(self.seq.config.plane))
             if self.terrain is not None and len(rec):
                 last_lost = rec.last_status == FrameStatus.LOST
-                self.terrain.finish(None if last_lost else self._last_image, W[-1])
+                self.terrain.finish(None if last_lost else self._last_image,
+                                    rec.world_from_cam.reshape(-1, 4, 4)[-1])
         return rec.result(self.drive.world_from_cam if self.drive is not None else closed, seconds)
+
+    def _hindsight(self) -> tuple[np.ndarray, SmoothedDrive | None]:
+        """The poses of the frames recorded with the gaps closed after lost ones, and their
+        smoothing in hindsight (None: ``smooth`` off, or no frame recorded)."""
+        rec = self._recorder
+        closed = close_gaps(rec.index, rec.world_from_cam.reshape(-1, 4, 4), rec.gaps)
+        if not self.smooth or not len(rec):
+            return closed, None
+        with one_blas_thread():
+            return closed, smooth_drive(rec.index, closed, [(k.index, k) for k in rec.keyframes],
+                                        tilts=self._odometry.ground_planar)
 
     def _images(self) -> Iterator[tuple[int, float, np.ndarray | None]]:
         """``(index, timestamp, image)`` of every frame for the core's loop, frame 0 as
