@@ -55,11 +55,10 @@ def mean_mount(seq: Path) -> Plane:
     normalised, and mean distance), from frame 0's true ground (``seq`` written with
     ``--init-pose frame0``) and the true motion: the drive's own mean mount."""
     plane = load_init(seq / "init.yaml").plane
-    n0, d0 = plane.normal, plane.distance
     _, gt = read_tum(seq / "groundtruth.tum")
-    normals = np.array([g[:3, :3].T @ n0 for g in gt])
-    n = normals.mean(axis=0)
-    return Plane(n / np.linalg.norm(n), float(np.mean([d0 - n0 @ g[:3, 3] for g in gt])))
+    seen = [plane.in_frame(se3_inv(g)) for g in gt]  # frame 0's ground in each camera
+    n = np.mean([p.normal for p in seen], axis=0)
+    return Plane(n / np.linalg.norm(n), float(np.mean([p.distance for p in seen])))
 
 
 def row(name: str, seq: Path, nominal: bool, how: str, plane: Plane | None = None) -> list[str]:
