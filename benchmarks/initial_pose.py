@@ -46,6 +46,7 @@ from monovo_cli.geometry.plane import Plane
 from monovo_cli.geometry.trajectory import path_length
 from monovo_cli.io.config import load_init
 from monovo_cli.io.formats import read_tum
+from monovo_cli.synth.rover import rover_mount
 from monovo_cli.synth.write import synthesize
 
 SEED = 21
@@ -75,10 +76,15 @@ def row(name: str, seq: Path, nominal: bool, how: str, plane: Plane | None = Non
             f"{final_pct(run.trajectory, gt):.3f}", f"{run.lost} / {run.reinit}", f"{bad} of {n}"]
 
 
-def over_seeds(args: argparse.Namespace, head: str) -> None:
+def over_seeds(args: argparse.Namespace) -> None:
     """Each of ``args.terrains`` on each of ``args.seeds``, init.yaml frame 0's ground read as
-    written: one row per drive as it finishes, then the final errors' median and RMS."""
+    written: one row per drive as it finishes (with frame 0's distance to the wheels' plane
+    against the design mount's, the crest, and the written trajectory's scale: its path
+    length over the true one), then the final errors' median and RMS."""
     frames = dict(DRIVES)
+    design = float(rover_mount("drive")[2, 3])  # the camera's height over the body's plane
+    head = ("| drive | frame 0's distance off the design mount (%) | scale of the trajectory - 1 (%) | "
+            "final error (% of path) | lost / reinit | untrusted rows |")
     print(table(head, []), flush=True)
     errors: dict[str, list[float]] = {t: [] for t in args.terrains}
     for seed in args.seeds:
@@ -87,9 +93,16 @@ def over_seeds(args: argparse.Namespace, head: str) -> None:
                 seq = Path(tmp) / terrain
                 synthesize(seq, preset="drive", terrain=terrain, frames=args.frames or frames[terrain],
                            size=(512, 512), noise_var=10.0, seed=seed, init_pose="frame0")
-                r = row(f"{terrain}, seed {seed}", seq, False, "as written")
-            errors[terrain].append(float(r[4]))
-            print("| " + " | ".join(r) + " |", flush=True)
+                cfg = load_init(seq / "init.yaml")
+                run = track_frames(seq / "frames", cfg)
+                _, gt = read_tum(seq / "groundtruth.tum")
+                truth = {k: se3_inv(a) @ b for k, (a, b) in enumerate(zip(gt[:-1], gt[1:]), start=1)}
+                bad, n, _ = untrusted(run, truth)
+            err = final_pct(run.trajectory, gt)
+            errors[terrain].append(err)
+            scale = 100.0 * (path_length(run.trajectory) / path_length(gt) - 1.0)
+            print(f"| {terrain}, seed {seed} | {100.0 * (cfg.plane.distance / design - 1.0):+.2f} | "
+                  f"{scale:+.3f} | {err:.3f} | {run.lost} / {run.reinit} | {bad} of {n} |", flush=True)
     print()
     for terrain, e in errors.items():
         e = np.asarray(e)
@@ -111,10 +124,8 @@ def main() -> None:
     args = ap.parse_args()
     one_core()
     print(f"Machine: {machine()}; {load()} at the start\n")
-    head = ("| drive | read | frames | path (m) | final error (% of path) | lost / reinit | "
-            "untrusted rows |")
     if args.seeds:
-        over_seeds(args, head)
+        over_seeds(args)
         return
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -130,6 +141,8 @@ def main() -> None:
             if terrain == "flat":
                 rows.append(row("flat, the drive's mean mount declared", seq, True, "as written",
                                 mean_mount(Path(tmp) / "flat-frame0")))
+    head = ("| drive | read | frames | path (m) | final error (% of path) | lost / reinit | "
+            "untrusted rows |")
     print(table(head, rows) + "\n")
     kitti = args.real / "kitti_ramp"
     if args.no_real:

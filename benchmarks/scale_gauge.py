@@ -2,6 +2,7 @@
 
     python -m benchmarks.scale_gauge                      # rolling and slope, 60 terrains each
     python -m benchmarks.scale_gauge --seeds 100 101 --terrains rolling
+    python -m benchmarks.scale_gauge --seeds 31 32 33 --per-seed   # each seed's error too
 
 On terrain, init.yaml gives the plane of the wheels under the rover at frame 0 (``monovo
 synth``'s frame-0 convention), but the camera sees the ground from about 0.5 m ahead of its
@@ -82,6 +83,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--terrains", nargs="+", default=["rolling", "slope"], choices=["rolling", "slope"])
     ap.add_argument("--seeds", type=int, nargs="+", default=list(range(100, 160)))
+    ap.add_argument("--per-seed", action="store_true", help="each seed's error under monovo's rule")
     args = ap.parse_args()
     print(f"Machine: {machine()}; {load()} at the start\n")
     for terrain in args.terrains:
@@ -105,6 +107,9 @@ def main() -> None:
         print(f"{terrain}, {len(args.seeds)} terrains (seeds {min(args.seeds)}-{max(args.seeds)}): "
               "the drive's scale error from the gauge alone, visible heights known\n")
         print(table(head, rows) + "\n", flush=True)
+        if args.per_seed:
+            print(f"{terrain}, monovo's rule, seed by seed: " + ", ".join(
+                f"{s} {per_seed[s][rules[0]]:+.3f}" for s in args.seeds) + " %\n", flush=True)
     print(f"({load()} at the end.)")
 
 
