@@ -54,10 +54,14 @@ def _default(name: str):
               default_text=_default("init_pose"),
               help="What init.yaml's ground holds for a drive: frame 0's true ground, or the "
                    "rover's nominal mount (written with 'ground.nominal: true').")
+@click.option("--crest", type=float, default=None, metavar="METRES",
+              help="A drive over --terrain (or mer): frame 0's bobbing height above the mean, "
+                   "within +-0.02 m, its pitch and roll at their means [default: frame 0 at a "
+                   "crest of the height, pitch and roll, as far from the mean as they bob].")
 @overwrite_option("Replace OUT if it exists.")
 @common
 def synth(verbosity, out, preset, frames, size, terrain, noise_var, seed, texture, max_translation,
-          exposure, psf, clean_frame0, init_pose, overwrite):
+          exposure, psf, clean_frame0, init_pose, crest, overwrite):
     """Write a synthetic sequence with ground truth into OUT."""
     from monovo_cli.synth.write import synthesize
 
@@ -75,7 +79,7 @@ def synth(verbosity, out, preset, frames, size, terrain, noise_var, seed, textur
     with progress_bar(verbosity.quiet, "frame") as bar:
         s = synthesize(out, frames=frames, size=size, texture=texture, terrain=terrain,
                        max_translation=max_translation, exposure=exposure,
-                       clean_frame0=clean_frame0, progress=bar,
+                       clean_frame0=clean_frame0, crest=crest, progress=bar,
                        **given(preset=preset, noise_var=noise_var, seed=seed, psf=psf,
                                init_pose=init_pose))
     if not verbosity.quiet:

@@ -203,14 +203,34 @@ def _crest(rng: np.random.Generator, n: int, periods: tuple[float, float], count
     return rng.choice([-1.0, 1.0]) * (amp[None, :] * np.cos(omega[None, :] * k[:, None])).sum(axis=1)
 
 
-def bobbing(n_frames: int, rng: np.random.Generator, periods: tuple[float, float]) -> np.ndarray:
+def _phased(rng: np.random.Generator, n: int, periods: tuple[float, float], phase: float,
+            count: int = 3) -> np.ndarray:
+    """A smooth random signal in [-1, 1] over frames 0..n-1 worth ``cos(phase)`` at frame 0
+    (every component shifted by ``phase``, rad)."""
+    k = np.arange(n, dtype=float)
+    omega = 2.0 * np.pi / rng.uniform(periods[0], periods[1], count)
+    amp = rng.uniform(0.5, 1.0, count)
+    amp /= amp.sum()
+    return (amp[None, :] * np.cos(omega[None, :] * k[:, None] - phase)).sum(axis=1)
+
+
+def bobbing(n_frames: int, rng: np.random.Generator, periods: tuple[float, float],
+            crest: float | None = None) -> np.ndarray:
     """``(n, 3)`` suspension bobbing of the body per frame: height (m, +-BOB_HEIGHT), pitch
     and roll (rad, +-BOB_TILT_DEG); periods in frames. Frame 0 is at a crest of all three,
-    as far from the mean as the bobbing goes."""
+    as far from the mean as the bobbing goes; with ``crest`` (m, within +-BOB_HEIGHT), frame
+    0's height is ``crest`` and its pitch and roll are at their means (0), the signs of their
+    slopes drawn."""
     tilt = math.radians(BOB_TILT_DEG)
-    return np.column_stack([BOB_HEIGHT * _crest(rng, n_frames, periods),
-                            tilt * _crest(rng, n_frames, periods),
-                            tilt * _crest(rng, n_frames, periods)])
+    if crest is None:
+        return np.column_stack([BOB_HEIGHT * _crest(rng, n_frames, periods),
+                                tilt * _crest(rng, n_frames, periods),
+                                tilt * _crest(rng, n_frames, periods)])
+    rising = rng.choice([-1.0, 1.0], 3)
+    height = math.acos(float(np.clip(crest / BOB_HEIGHT, -1.0, 1.0)))
+    return np.column_stack([BOB_HEIGHT * _phased(rng, n_frames, periods, rising[0] * height),
+                            tilt * _phased(rng, n_frames, periods, rising[1] * 0.5 * np.pi),
+                            tilt * _phased(rng, n_frames, periods, rising[2] * 0.5 * np.pi)])
 
 
 def camera_mount(pitch_deg: float, mast_height: float = DRIVE_MAST_HEIGHT,

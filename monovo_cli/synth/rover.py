@@ -73,10 +73,12 @@ def _box(path: np.ndarray, margin: float) -> tuple[float, float, float, float]:
 
 def rover_scene(preset: str, terrain: str, frames: int, *, motion_rng: np.random.Generator,
                 terrain_rng: np.random.Generator, bob_rng: np.random.Generator,
-                peak_step: float, origin: tuple[float, float]) -> RoverScene:
+                peak_step: float, origin: tuple[float, float],
+                crest: float | None = None) -> RoverScene:
     """The drive of ``preset`` (``drive``: ~5 cm steps, smooth turns, camera pitched
     TERRAIN_PITCH_DEG; ``mer``: MER stop-and-go steps, MER_PITCH_DEG) over ``terrain`` (one
-    of TERRAINS), starting at ``origin`` (m); deterministic in the generators."""
+    of TERRAINS), starting at ``origin`` (m), frame 0's bob as :func:`bobbing` has it for
+    ``crest``; deterministic in the generators."""
     if preset == "mer":
         path, turning = mer_path(frames, motion_rng, origin)
         periods = MER_BOB_PERIODS
@@ -85,7 +87,7 @@ def rover_scene(preset: str, terrain: str, frames: int, *, motion_rng: np.random
         turning, periods = None, DRIVE_BOB_PERIODS
     ground = make_terrain(terrain, terrain_rng, _box(path, ROCK_MARGIN))
     sun_azimuth = float(terrain_rng.uniform(0.0, 2.0 * math.pi))
-    bob = bobbing(frames, bob_rng, periods)
+    bob = bobbing(frames, bob_rng, periods, crest)
     mount = rover_mount(preset)
     poses = rover_poses(path, ground.base_height, bob, mount)
     return RoverScene(poses, path, turning, bob, mount, ground, _box(path, HEIGHTS_MARGIN),

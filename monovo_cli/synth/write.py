@@ -61,6 +61,7 @@ from monovo_cli.geometry.lie import make_pose
 from monovo_cli.io.atomic import atomic_write_bytes, atomic_write_text
 from monovo_cli.synth.gravel import gravel_texture
 from monovo_cli.synth.motion import (
+    BOB_HEIGHT,
     DRIVE_MAST_HEIGHT,
     DRIVE_PITCH_DEG,
     DRIVE_SPEED_VARIATION,
@@ -142,7 +143,7 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
                texture: Path | str | None = None, max_translation: float | None = None,
                max_rotation_deg: float = 5.0, exposure: bool = False, shadow: float = 0.0,
                low_texture: bool = False, clean_frame0: bool = False, terrain: str | None = None,
-               init_pose: str = "frame0", psf: float = 0.0,
+               init_pose: str = "frame0", psf: float = 0.0, crest: float | None = None,
                progress: Callable[[int, int], None] | None = None) -> SynthSummary:
     """Write a synthetic sequence (``drive``, ``mer``) or set of 2-frame sequences (``pairs``).
 
@@ -174,6 +175,10 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
     function applied before the pixel (to the noise-free supersampled image, before its area
     average, exposure and noise; the shadow lies on the ground, under the blur); 0 (the
     default) renders exactly as without it, and synth.yaml records ``psf`` only when > 0.
+    ``crest``: a rover's drive only: frame 0's bobbing height above the mean, m (within
+    +-BOB_HEIGHT), its pitch and roll at their means; None (the default): frame 0 at a
+    crest of all three, as far from the mean as the bobbing goes (synth.yaml records
+    ``crest`` only when given).
     ``progress(done, total)`` is called after each drive frame / each pair.
     Raises InputError for bad arguments, OutputError if ``out_dir`` exists and is not empty
     or cannot be written.
@@ -220,6 +225,11 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
     _check_number("max_rotation_deg", max_rotation_deg, low=0.0, high=30.0)
     _check_number("--shadow", shadow, low=0.0, high=1.0)
     _check_number("--psf", psf, low=0.0, high=MAX_PSF)
+    if crest is not None:
+        if not rover:
+            raise InputError("--crest: only a drive over --terrain (or the mer preset) bobs")
+        _check_number("--crest", crest, low=-BOB_HEIGHT, high=BOB_HEIGHT)
+        crest = float(crest)
     if out_dir.exists():
         if not out_dir.is_dir():
             raise OutputError(f"{out_dir}: exists and is not a directory")
@@ -274,6 +284,8 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
     }
     if psf > 0:  # (absent at 0: the default's synth.yaml is as before the option)
         params["psf"] = float(psf)
+    if crest is not None:
+        params["crest"] = crest
     # All geometry first (it can still reject the arguments), then write.
     sequences: list[tuple[Path, list[np.ndarray], list[tuple[float, float]] | None, dict]] = []
     if drive:
@@ -281,7 +293,7 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
         if rover:
             scene = rover_scene(preset, terrain, frames, motion_rng=motion_rng,
                                 terrain_rng=terrain_rng, bob_rng=bob_rng,
-                                peak_step=float(max_translation), origin=origin)
+                                peak_step=float(max_translation), origin=origin, crest=crest)
             poses = scene.poses
         else:
             poses = drive_poses(frames, motion_rng, peak_step=float(max_translation), origin=origin)

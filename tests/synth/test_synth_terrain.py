@@ -170,6 +170,33 @@ def test_body_lies_on_a_sloping_plane_and_bobs_from_a_crest():
     assert np.all(np.abs(bob) <= limits + 1e-12)
 
 
+def test_frame_0_may_sit_at_a_given_height_of_the_bobbing():
+    """``crest``: frame 0's height is the one given, its pitch and roll at their means; the
+    bobbing keeps its range (issue 24's case: +1.3 cm of +-2 cm)."""
+    limits = np.array([BOB_HEIGHT, math.radians(BOB_TILT_DEG), math.radians(BOB_TILT_DEG)])
+    for crest in (0.013, -BOB_HEIGHT, 0.0):
+        bob = bobbing(400, np.random.default_rng(5), (15.0, 60.0), crest)
+        assert bob[0] == pytest.approx([crest, 0.0, 0.0], abs=1e-15)
+        assert np.all(np.abs(bob) <= limits + 1e-12)
+        assert np.all(np.abs(bob).max(axis=0) > 0.8 * limits)  # it bobs most of that far
+
+
+def test_crest_is_frame_0s_distance_off_the_design_mount(synth_drive, tmp_path):
+    """On flat ground frame 0's plane in init.yaml is the design mount's moved by the crest
+    along its normal, the tilts unchanged; synth.yaml records it; out of range, or without a
+    rover, it is refused."""
+    seq = synth_drive(terrain="flat", frames=2, size=SIZE, seed=3, noise_var=0.0, crest=0.013)
+    init = yaml.safe_load((seq / "init.yaml").read_text())
+    n_nom, d_nom = ground_in_camera(rover_mount("drive"))
+    assert init["ground"]["distance"] == pytest.approx(d_nom + 0.013, abs=1e-9)
+    assert init["ground"]["normal"] == pytest.approx(n_nom, abs=1e-9)
+    assert yaml.safe_load((seq / "synth.yaml").read_text())["crest"] == 0.013
+    with pytest.raises(InputError, match="--crest"):
+        synthesize(tmp_path / "a", preset="drive", terrain="flat", frames=2, size=(64, 64), crest=0.03)
+    with pytest.raises(InputError, match="--crest"):
+        synthesize(tmp_path / "b", preset="drive", frames=2, size=(64, 64), crest=0.01)
+
+
 # ----------------------------------------------------------------------------- written drives
 
 
