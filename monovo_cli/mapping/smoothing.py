@@ -88,8 +88,8 @@ def smoothed_distances(keys: Sequence[Anchored],
     ``D`` relative to it: 0 for a declared mount, an unknown of its own for a latent one (with
     the prior ``v = 0`` of the same std only when no keyframe is held, so that the system stays
     determined); and a chain's first keyframe held at its distance with its own variance where
-    that is much tighter than the prior's (frame 0's exact plane, or an ``init.yaml`` the
-    images confirmed as exact). The normal equations are tridiagonal, bordered by ``v``'s row
+    that is much tighter than the prior's (frame 0's exact plane; not a nominal one, whose
+    distance the images cannot confirm). The normal equations are tridiagonal, bordered by ``v``'s row
     and column when it is unknown (Thomas' algorithm and a Schur complement)."""
     K = len(keys)
     lift = np.zeros(K) if log_ratios is None else np.asarray(log_ratios, dtype=float)

@@ -22,7 +22,8 @@ to the prior's width.
 A keyframe plane known only loosely (tilt std above PLANE_SETTLED_DEG: a nominal frame 0, a
 stated uncertainty, a keyframe anchored after lost frames, :meth:`PlaneTracker.loosened`) is
 tested on every frame by :meth:`PlaneTracker.test`: images that contradict it correct it,
-images that confirm it make frame 0's exact and a later keyframe's as sure as they are. The
+images that confirm it make frame 0's tilt exact (its distance keeps its uncertainty) and a
+later keyframe's as sure as they are. The
 contradiction of a tilt given as exact stays in the reported covariance, and on ground
 frame 0's images confirm the carried distance keeps frame 0's
 (:attr:`PlaneTracker.distance_change`). Frame 0's tilt is
@@ -278,8 +279,9 @@ class PlaneTracker:
         key_image at the same pose, the frame re-estimated against it, the fused covariance)``
         comes back for the caller to check and adopt; the plane keeps its distance and that
         distance's uncertainty. If the images confirm an unsettled plane to within
-        CONFIRMED_DEG, frame 0's is taken as exact and a later keyframe's takes the
-        measurement's tilt covariance (:attr:`covariance` shrinks). None unless the plane
+        CONFIRMED_DEG, frame 0's tilt is taken as exact (:meth:`_tilt_exact`) and a later
+        keyframe's takes the measurement's tilt covariance (:attr:`covariance` shrinks).
+        None unless the plane
         was corrected; never for frame 0's with ``keep_initial_tilt``.
         """
         fit = refine_plane_and_motion(key.levels[0].points, pyramid[0], est.cur_from_key,
@@ -314,7 +316,7 @@ class PlaneTracker:
             return None
         if chi2 < CONSISTENT_CHI2:
             if precise and self.unsettled:
-                self.covariance = exact_covariance(key.plane) if key.index == 0 else \
+                self.covariance = self._tilt_exact(key.plane) if key.index == 0 else \
                     self._confirmed(fit.measured, key.plane)
             return None
         # Contradicted: the tilt is corrected, a tilt given as exact taken as known to the
@@ -343,6 +345,17 @@ class PlaneTracker:
         log.info("frame %d's images do not confirm init.yaml's ground tilt (chi-square %.1f): "
                  "the std columns carry a %.1f deg model error on it from here", index, chi2,
                  TILT_MODEL_ERROR_DEG)
+
+    def _tilt_exact(self, plane: Plane) -> np.ndarray:
+        """The covariance of frame 0's ``plane`` once the images confirmed its tilt: the tilt
+        exact, the distance as uncertain as it was. The images hold nothing on the distance
+        (the monocular scale): a nominal mount's stays known to the prior's width, so that
+        hindsight sets the scale from the declared mount over the whole drive, not from
+        frame 0's bob (on a flat drive with frame 0 1.3 cm above the mean, making it exact
+        kept that 0.87 % in the trajectory's scale)."""
+        cov = exact_covariance(plane)
+        cov[0, 0] = max(float(self.covariance[0, 0]), cov[0, 0])
+        return cov
 
     def _confirmed(self, measured: PlaneBelief, plane: Plane) -> np.ndarray:
         """The covariance of a later keyframe's ``plane`` the images confirm (``measured``):

@@ -35,13 +35,13 @@ def drives(synth_drive):
                            noise_var=10.0, init_pose=c) for c in ("frame0", "nominal")}
 
 
-def test_both_conventions_are_unbiased_and_reading_the_nominal_mount_as_frame_0s_is_not(drives):
-    """Final error, % of the path (measured, 60 frames of 256²): frame 0's ground 0.007 %,
-    the nominal mount 0.14 % (60 frames' bobbing does not average to the nominal mount); the
-    nominal mount read as frame 0's ground 0.76 % (the crest's 1.3 cm over 1.5 m). Frame 0's
-    ground read as the nominal mount costs nothing on this flat drive (0.007 %): the images
-    confirm its tilt, so the carried distance keeps frame 0's, which is right (0.23 % when
-    every keyframe's distance went to the mounting prior)."""
+def test_both_conventions_are_unbiased_and_reading_either_as_the_other_is_not(drives):
+    """Final error, % of the path (measured, 60 frames of 256², frame 0 at a crest of the
+    bobbing 0.5 % off the mean distance): frame 0's ground 0.007 %, the nominal mount 0.14 %
+    (60 frames' bobbing does not average to the nominal mount); the nominal mount read as
+    frame 0's ground 0.76 %; frame 0's ground read as the nominal mount 0.46 %: its bob is
+    then taken for the mean (0.007 % before 41e0f8d, when images that confirmed a nominal
+    mount's tilt made its distance exact too, the next test's case)."""
     as_frame0 = final_pct(drives["frame0"])
     as_nominal = final_pct(drives["nominal"])
     assert as_frame0 < 0.05 and as_nominal < 0.3
@@ -49,7 +49,19 @@ def test_both_conventions_are_unbiased_and_reading_the_nominal_mount_as_frame_0s
     misread = final_pct(drives["frame0"], dataclasses.replace(cfg, nominal=True))
     cfg = load_init(drives["nominal"] / "init.yaml")
     misread_other = final_pct(drives["nominal"], dataclasses.replace(cfg, nominal=False))
-    assert misread < 0.05 and misread_other > 2 * as_nominal
+    assert misread > 2 * as_frame0 and misread_other > 2 * as_nominal
+
+
+def test_a_nominal_mount_whose_tilt_the_images_confirm_keeps_its_distance_loose(synth_drive):
+    """Issue 24's case: frame 0 1.3 cm above the mean height, its pitch and roll at their
+    means, init.yaml the nominal mount declared. The images confirm the tilt; the distance
+    they cannot test stays known to the prior's width, and hindsight sets the scale from the
+    declared mount: 0.17 % of the path (measured; 0.10 and 0.01 % on seeds 21 and 3). When a
+    confirmed tilt made the distance exact too, frame 0's 0.87 % stayed in the scale: 0.83 %
+    on each of the three seeds."""
+    seq = synth_drive(preset="drive", terrain="flat", frames=60, size=(256, 256), seed=12,
+                      noise_var=10.0, init_pose="nominal", crest=0.013)
+    assert final_pct(seq) < 0.3
 
 
 def test_a_tilt_the_images_stop_confirming_carries_the_model_error():
