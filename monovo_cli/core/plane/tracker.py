@@ -22,8 +22,8 @@ to the prior's width.
 A keyframe plane known only loosely (tilt std above PLANE_SETTLED_DEG: a nominal frame 0, a
 stated uncertainty, a keyframe anchored after lost frames, :meth:`PlaneTracker.loosened`) is
 tested on every frame by :meth:`PlaneTracker.test`: images that contradict it correct it,
-images that confirm it make frame 0's tilt exact (its distance keeps its uncertainty) and a
-later keyframe's as sure as they are. The
+images that measure frame 0's precisely correct it (its distance keeps its uncertainty: the
+images cannot measure it) and make a later keyframe's as sure as they are. The
 contradiction of a tilt given as exact stays in the reported covariance, and on ground
 frame 0's images confirm the carried distance keeps frame 0's
 (:attr:`PlaneTracker.distance_change`). Frame 0's tilt is
@@ -278,10 +278,11 @@ class PlaneTracker:
         CONSISTENT_CHI2), the two are fused and ``(keyframe rebuilt on the result from
         key_image at the same pose, the frame re-estimated against it, the fused covariance)``
         comes back for the caller to check and adopt; the plane keeps its distance and that
-        distance's uncertainty. If the images confirm an unsettled plane to within
-        CONFIRMED_DEG, frame 0's tilt is taken as exact (:meth:`_tilt_exact`) and a later
-        keyframe's takes the measurement's tilt covariance (:attr:`covariance` shrinks).
-        None unless the plane
+        distance's uncertainty. So too for frame 0's plane known only loosely (a nominal
+        mount, a stated std) when the images measure its tilt to within CONFIRMED_DEG,
+        whatever the chi-square: the tilt given is the mount's mean, or a guess, and frame
+        0's own bobs. A later keyframe's unsettled plane the images confirm takes the
+        measurement's tilt covariance (:attr:`covariance` shrinks). None unless the plane
         was corrected; never for frame 0's with ``keep_initial_tilt``.
         """
         fit = refine_plane_and_motion(key.levels[0].points, pyramid[0], est.cur_from_key,
@@ -301,6 +302,9 @@ class PlaneTracker:
             return None
         precise = measured_tilt_std_deg(fit.measured) < CONFIRMED_DEG
         keep = key.index == 0 and self.keep_initial_tilt
+        # frame 0's tilt given loosely (a nominal mount, a stated std) and measured precisely:
+        # corrected, as when contradicted (it is the mean's, or a guess; frame 0's own bobs)
+        measure = key.index == 0 and precise and self.unsettled and not keep
         exact = key.index == 0 and tilt_std_deg(self.covariance) < self.sigmas[1]
         if exact and chi2 >= CONSISTENT_CHI2 and self._disputed_tilt is None:
             got = measured_tilt(fit.measured, key.plane)  # a tilt given as exact, contradicted
@@ -309,19 +313,19 @@ class PlaneTracker:
         if key.index == 0 and self.initial_tilt is None:
             self._tilt_checks += 1
             if precise or chi2 >= CONSISTENT_CHI2 or self._tilt_checks >= TILT_CHECK_FRAMES:
-                self._record_initial_tilt(fit.measured, key.plane, chi2, index, not keep)
+                self._record_initial_tilt(fit.measured, key.plane, chi2, index,
+                                          not keep and (chi2 >= CONSISTENT_CHI2 or measure))
                 if exact and UNCONFIRMED_CHI2 <= chi2 < CONSISTENT_CHI2:
                     self._unconfirmed(index, chi2)
         if keep:
             return None
-        if chi2 < CONSISTENT_CHI2:
+        if chi2 < CONSISTENT_CHI2 and not measure:
             if precise and self.unsettled:
-                self.covariance = self._tilt_exact(key.plane) if key.index == 0 else \
-                    self._confirmed(fit.measured, key.plane)
+                self.covariance = self._confirmed(fit.measured, key.plane)
             return None
-        # Contradicted: the tilt is corrected, a tilt given as exact taken as known to the
-        # prior's width (the ground the images see is not the plane under the wheels); the
-        # distance keeps its own uncertainty.
+        # Contradicted, or frame 0's loose tilt measured precisely: the tilt is corrected, a
+        # tilt given as exact taken as known to the prior's width (the ground the images see
+        # is not the plane under the wheels); the distance keeps its own uncertainty.
         cov = np.array(self.covariance, dtype=float)
         if tilt_std_deg(cov) < self.sigmas[1]:
             cov[1:, 1:] = self.mounting_tilt_covariance
@@ -345,17 +349,6 @@ class PlaneTracker:
         log.info("frame %d's images do not confirm init.yaml's ground tilt (chi-square %.1f): "
                  "the std columns carry a %.1f deg model error on it from here", index, chi2,
                  TILT_MODEL_ERROR_DEG)
-
-    def _tilt_exact(self, plane: Plane) -> np.ndarray:
-        """The covariance of frame 0's ``plane`` once the images confirmed its tilt: the tilt
-        exact, the distance as uncertain as it was. The images hold nothing on the distance
-        (the monocular scale): a nominal mount's stays known to the prior's width, so that
-        hindsight sets the scale from the declared mount over the whole drive, not from
-        frame 0's bob (on a flat drive with frame 0 1.3 cm above the mean, making it exact
-        kept that 0.87 % in the trajectory's scale)."""
-        cov = exact_covariance(plane)
-        cov[0, 0] = max(float(self.covariance[0, 0]), cov[0, 0])
-        return cov
 
     def _confirmed(self, measured: PlaneBelief, plane: Plane) -> np.ndarray:
         """The covariance of a later keyframe's ``plane`` the images confirm (``measured``):
@@ -389,7 +382,7 @@ class PlaneTracker:
             return
         x, s = np.degrees(got[0]), np.degrees(np.sqrt(np.clip(np.diag(got[1]), 0.0, None)))
         self.initial_tilt = InitialTilt((float(x[0]), float(x[1])), (float(s[0]), float(s[1])),
-                                        float(chi2), frame, bool(adopted and chi2 >= CONSISTENT_CHI2))
+                                        float(chi2), frame, bool(adopted))
         words = ("contradict" if chi2 >= CONSISTENT_CHI2 else "agree with")
         log.info("the images %s init.yaml's ground tilt: measured %+.2f, %+.2f deg (std %.2f, "
                  "%.2f) from it, chi-square %.1f; %s", words, x[0], x[1], s[0], s[1], chi2,
