@@ -193,16 +193,6 @@ def mer_path(n_frames: int, rng: np.random.Generator,
     return np.array(path[:n_frames]), np.array(turning[:n_frames])
 
 
-def _crest(rng: np.random.Generator, n: int, periods: tuple[float, float], count: int = 3
-           ) -> np.ndarray:
-    """A smooth random signal in [-1, 1] over frames 0..n-1 at a crest (+1 or -1) at frame 0."""
-    k = np.arange(n, dtype=float)
-    omega = 2.0 * np.pi / rng.uniform(periods[0], periods[1], count)
-    amp = rng.uniform(0.5, 1.0, count)
-    amp /= amp.sum()
-    return rng.choice([-1.0, 1.0]) * (amp[None, :] * np.cos(omega[None, :] * k[:, None])).sum(axis=1)
-
-
 def _phased(rng: np.random.Generator, n: int, periods: tuple[float, float], phase: float,
             count: int = 3) -> np.ndarray:
     """A smooth random signal in [-1, 1] over frames 0..n-1 worth ``cos(phase)`` at frame 0
@@ -212,6 +202,13 @@ def _phased(rng: np.random.Generator, n: int, periods: tuple[float, float], phas
     amp = rng.uniform(0.5, 1.0, count)
     amp /= amp.sum()
     return (amp[None, :] * np.cos(omega[None, :] * k[:, None] - phase)).sum(axis=1)
+
+
+def _crest(rng: np.random.Generator, n: int, periods: tuple[float, float], count: int = 3
+           ) -> np.ndarray:
+    """A smooth random signal in [-1, 1] over frames 0..n-1 at a crest (+1 or -1) at frame 0."""
+    signal = _phased(rng, n, periods, 0.0, count)
+    return rng.choice([-1.0, 1.0]) * signal
 
 
 def bobbing(n_frames: int, rng: np.random.Generator, periods: tuple[float, float],
