@@ -69,14 +69,20 @@ def mean_mount(seq: Path) -> Plane:
     return Plane(n / np.linalg.norm(n), float(np.mean([p.distance for p in seen])))
 
 
-def row(name: str, seq: Path, nominal: bool, how: str, plane: Plane | None = None) -> list[str]:
-    cfg = dataclasses.replace(load_init(seq / "init.yaml"), nominal=nominal)
-    if plane is not None:
-        cfg = dataclasses.replace(cfg, plane=plane)
+def tracked(seq: Path, cfg) -> tuple:
+    """``seq`` tracked with the init ``cfg``: ``(run, true poses, untrusted rows, rows)``."""
     run = track_frames(seq / "frames", cfg)
     _, gt = read_tum(seq / "groundtruth.tum")
     truth = {k: se3_inv(a) @ b for k, (a, b) in enumerate(zip(gt[:-1], gt[1:]), start=1)}
     bad, n, _ = untrusted(run, truth)
+    return run, gt, bad, n
+
+
+def row(name: str, seq: Path, nominal: bool, how: str, plane: Plane | None = None) -> list[str]:
+    cfg = dataclasses.replace(load_init(seq / "init.yaml"), nominal=nominal)
+    if plane is not None:
+        cfg = dataclasses.replace(cfg, plane=plane)
+    run, gt, bad, n = tracked(seq, cfg)
     return [name, how, str(run.frames), f"{path_length(gt):.2f}",
             f"{final_pct(run.trajectory, gt):.3f}", f"{run.lost} / {run.reinit}", f"{bad} of {n}"]
 
@@ -104,10 +110,7 @@ def over_seeds(args: argparse.Namespace) -> None:
                            size=(512, 512), noise_var=10.0, seed=seed, init_pose="frame0",
                            crest=args.crest)
                 cfg = load_init(seq / "init.yaml")
-                run = track_frames(seq / "frames", cfg)
-                _, gt = read_tum(seq / "groundtruth.tum")
-                truth = {k: se3_inv(a) @ b for k, (a, b) in enumerate(zip(gt[:-1], gt[1:]), start=1)}
-                bad, n, _ = untrusted(run, truth)
+                run, gt, bad, n = tracked(seq, cfg)
             err = final_pct(run.trajectory, gt)
             errors[terrain].append(err)
             scale = 100.0 * (path_length(run.trajectory) / path_length(gt) - 1.0)

@@ -36,6 +36,7 @@ import numpy as np
 from benchmarks.common import load, machine
 from benchmarks.integrity import table
 from benchmarks.terrain_grid import true_points
+from monovo_cli.core.estimator.terrain_grid import plane_axes
 from monovo_cli.io.config import load_init
 from monovo_cli.synth.write import synthesize
 
@@ -51,18 +52,13 @@ def visible_heights(seq: Path) -> tuple[np.ndarray, np.ndarray, float]:
     cam, plane = cfg.camera, cfg.plane
     x0, y0, x1, y1 = cfg.region if cfg.region is not None else (0, 0, cam.width, cam.height)
     u, v = np.meshgrid(np.arange(x0, x1, STEP) + 0.5, np.arange(y0, y1, STEP) + 0.5)
-    rays = np.column_stack([(u.ravel() - cam.cx) / cam.fx, (v.ravel() - cam.cy) / cam.fy,
-                            np.ones(u.size)])
+    rays = cam.rays(np.column_stack([u.ravel(), v.ravel()]))
     front = rays @ plane.normal > 1e-3
     X = true_points(seq, 0, plane.intersect(rays[front]))
     ok = np.all(np.isfinite(X), axis=1) & (X[:, 2] > 0)
     X = X[ok]
     n, d = plane.normal, plane.distance
-    e1 = np.cross(n, [1.0, 0.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(n, e1)
-    P = X - d * n
-    return np.column_stack([P @ e1, P @ e2]), d - X @ n, d
+    return (X - d * n) @ plane_axes(plane).T, d - X @ n, d  # (along the plane's right, forward)
 
 
 def gauge_errors(xy: np.ndarray, h: np.ndarray, d: float) -> dict[str, float]:
