@@ -23,11 +23,14 @@ ALL_POINTS = 1 << 30  # max_points meaning "no cap" (`--max-points all`)
 
 @dataclass(frozen=True)
 class EstimatorOptions:
-    """Gauss-Newton settings. ``min_msd_decrease`` is the paper's delta_2 (relative)."""
+    """Gauss-Newton settings. ``min_msd_decrease`` is the paper's delta_2 (relative);
+    ``step_tolerance_px`` and ``relaxation`` are the finest level's (a step moving the points
+    less than that is the last; small steps are stretched by ``relaxation``, which leaves the
+    fixed point as it is: :mod:`monovo_cli.core.estimator.estimate`)."""
 
     max_iterations: int = 30
     min_msd_decrease: float = 1e-6
-    step_tolerance_px: float = 3e-3
+    step_tolerance_px: float = 6e-3
     robust: str = "huber"            # "huber", "tukey" or "none"
     huber_k: float = 1.345
     tukey_c: float = 4.685
@@ -35,6 +38,7 @@ class EstimatorOptions:
     min_valid_points: int = 20
     interpolation: str = "cubic"     # at the finest level: OpenCV's "cubic" (Keys), "linear"
     #                                  or "lanczos4" (image.sampling.INTERPOLATION)
+    relaxation: float = 1.15
 
 
 @dataclass(frozen=True)
