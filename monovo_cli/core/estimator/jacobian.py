@@ -38,17 +38,33 @@ def observation_rows(X: np.ndarray, gx: np.ndarray, gy: np.ndarray, fx: float, f
     1 / Z (default), or 0 where a caller masks points behind the camera. Rows 0..2 are the
     vector ``a`` of the module docstring.
     """
-    x, y, z = X[:, 0], X[:, 1], X[:, 2]
+    x, y, z = np.ascontiguousarray(X.T)
+    given = [a for a in (distortion_jacobian, inverse_depth) if a is not None]
+    out = np.empty((6, len(X)), np.result_type(X, gx, gy, *given))  # (np.stack's type)
+    a1, a2, a3, r4, r5, r6 = out
     if distortion_jacobian is None:
         gx, gy = gx * fx, gy * fy
     else:
         D = distortion_jacobian
         gx, gy = gx * D[:, 0, 0] + gy * D[:, 1, 0], gx * D[:, 0, 1] + gy * D[:, 1, 1]
     iz = 1.0 / z if inverse_depth is None else inverse_depth
-    a1 = gx * iz
-    a2 = gy * iz
-    a3 = -(a1 * x + a2 * y) * iz
-    return np.stack([a1, a2, a3, a3 * y - a2 * z, a1 * z - a3 * x, a2 * x - a1 * y])
+    # In place, the same operations as a = (gx iz, gy iz, -(a1 x + a2 y) iz) and the
+    # rotation rows a x X: a keyframe's finest level is 10^5 points, and a fresh temporary
+    # of that size a step cost more than the step.
+    np.multiply(gx, iz, out=a1)
+    np.multiply(gy, iz, out=a2)
+    tmp = a2 * y
+    np.multiply(a1, x, out=a3)
+    a3 += tmp
+    a3 *= iz
+    np.negative(a3, out=a3)
+    np.multiply(a3, y, out=r4)
+    r4 -= np.multiply(a2, z, out=tmp)
+    np.multiply(a1, z, out=r5)
+    r5 -= np.multiply(a3, x, out=tmp)
+    np.multiply(a2, x, out=r6)
+    r6 -= np.multiply(a1, y, out=tmp)
+    return out
 
 
 def observation_matrix(X: np.ndarray, grad: np.ndarray, fx: float, fy: float,
