@@ -2,23 +2,29 @@
 
     python -m benchmarks.hindsight                      # 4 terrain drives + a plane drive, 300 frames
     python -m benchmarks.hindsight --frames 150 --seed 1 --cases flat plane
+    python -m benchmarks.hindsight --frames 1000 --seed 7 --cases plane shadow lowtex
 
 Each drive is tracked once, with default options (``monovo_cli.track_frames``), and its
-poses written three ways (docs/algorithm.md, "The trajectory in hindsight"):
+poses written four ways (docs/algorithm.md, "The trajectory in hindsight"):
 
   streamed    motion.csv's motions composed (``track --no-smooth``);
   keyframes   re-scaled with the keyframe distances solved over the chain with the mounting
               prior at the keyframes alone, as the filter had it (close to the plain backward
               pass of the smoother);
-  segments    the default: the mounting prior on the mean over each keyframe's segment.
+  segments    the mounting prior on the mean over each keyframe's segment, translations
+              re-scaled only;
+  written     what trajectory.csv holds: the segments' distances, and where the drive's
+              ground was seen as a plane the motions re-read against the smoothed tilts too.
 
 Cases: ``flat``, ``rolling``, ``slope``, ``rocks`` (``monovo synth --preset drive --terrain
-KIND``: the rover bobs, frame 0 at a crest, init.yaml the nominal plane) and ``plane``
-(``--preset drive`` without terrain: an exact init.yaml). Reported: the final position error
-(% of the distance) and the position error's RMS over the whole drive (mm) of each, and where
-the true keyframe distance is defined (flat: the camera's height above the ground; plane: the
-init plane carried by the true poses) keyframe 0's distance error (mm) and the RMS over the
-keyframes (mm), filtered (as anchored) and solved in hindsight.
+KIND``: the rover bobs, frame 0 at a crest, init.yaml the nominal plane), ``plane``
+(``--preset drive`` without terrain: an exact init.yaml) and the plane drive with the cases of
+``benchmarks.drives``: ``exposure``, ``shadow``, ``lowtex`` (a smooth, low-contrast ground).
+Reported: the final position error (% of the distance) and the position error's RMS over
+the whole drive (mm) of each, and where the true keyframe distance is defined (flat: the
+camera's height above the ground; plane and its variants: the init plane carried by the true
+poses) keyframe 0's distance error (mm) and the RMS over the keyframes (mm), filtered (as
+anchored) and solved in hindsight.
 """
 
 from __future__ import annotations
@@ -37,25 +43,28 @@ from monovo_cli.io.formats import read_tum
 from monovo_cli.mapping.smoothing import segment_log_distance_ratios, smoothed_distances, smoothed_poses
 from monovo_cli.synth.write import synthesize
 
-CASES = ("flat", "rolling", "slope", "rocks", "plane")
+CASES = ("flat", "rolling", "slope", "rocks", "plane", "exposure", "shadow", "lowtex")
+#: The plane drive's variants (``synthesize`` options, as ``benchmarks.drives`` renders them).
+PLANE_CASES = {"plane": {}, "exposure": {"exposure": True}, "shadow": {"shadow": 0.15},
+               "lowtex": {"low_texture": True}}
 
 
 def render(root: Path, kind: str, frames: int, seed: int) -> Path:
     seq = root / f"{kind}_{frames}_{seed}"
     if not (seq / "groundtruth.tum").exists():
-        terrain = {} if kind == "plane" else {"terrain": kind}
+        extra = PLANE_CASES.get(kind, {"terrain": kind})
         synthesize(seq, preset="drive", frames=frames, size=(512, 512), noise_var=10.0,
-                   seed=seed, **terrain)
+                   seed=seed, **extra)
     return seq
 
 
 def run_case(seq: Path, kind: str) -> dict:
-    run = track_frames(seq, smooth=False)
+    run = track_frames(seq)
     index, W = list(run.index), run.world_from_cam
     chain = [(k.index, k) for k in run.keyframes]
     _, gt = read_tum(seq / "groundtruth.tum")
     ways = {"streamed": W, "keyframes": smoothed_poses(index, W, chain, segments=False),
-            "segments": smoothed_poses(index, W, chain)}
+            "segments": smoothed_poses(index, W, chain), "written": run.trajectory}
     row = {"kind": kind, "frames": run.frames, "keys": len(chain)}
     for name, P in ways.items():
         err, dist, _ = final_drift(P, gt)
@@ -76,20 +85,22 @@ def true_distances(seq: Path, kind: str, chain, gt: np.ndarray) -> np.ndarray | 
     if kind == "flat":  # the ground is z = 0 of the terrain's frame
         g_from_cam = np.load(seq / "terrain.npz")["g_from_cam"]
         return np.array([g_from_cam[i][2, 3] for i, _ in chain])
-    if kind == "plane":  # init.yaml is exact: frame 0's plane, carried by the true poses
+    if kind in PLANE_CASES:  # init.yaml is exact: frame 0's plane, carried by the true poses
         plane0 = load_init(seq / "init.yaml").plane
         return np.array([plane0.in_frame(se3_inv(gt[i]) @ gt[0]).distance for i, _ in chain])
     return None
 
 
 def table(rows: list[dict]) -> str:
-    lines = ["| drive | frames / keyframes | final error (%): streamed / keyframes / segments | "
-             "position RMS (mm): streamed / keyframes / segments | keyframe 0's distance error "
+    lines = ["| drive | frames / keyframes | final error (%): streamed / keyframes / segments / "
+             "written | position RMS (mm): streamed / keyframes / segments / written | "
+             "keyframe 0's distance error "
              "(mm): filtered / solved | keyframe distances' RMS error (mm): filtered / solved |",
              "| --- | --- | --- | --- | --- | --- |"]
     for r in rows:
-        pct = " / ".join(f"{r[w][0]:.3f}" for w in ("streamed", "keyframes", "segments"))
-        rms = " / ".join(f"{r[w][1]:.2f}" for w in ("streamed", "keyframes", "segments"))
+        ways = ("streamed", "keyframes", "segments", "written")
+        pct = " / ".join(f"{r[w][0]:.3f}" for w in ways)
+        rms = " / ".join(f"{r[w][1]:.2f}" for w in ways)
         d = r.get("distances")
         d0 = f"{d[0][0]:.1f} / {d[1][0]:.1f}" if d else "—"
         drms = f"{d[0][1]:.1f} / {d[1][1]:.1f}" if d else "—"
