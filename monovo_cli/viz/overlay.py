@@ -142,7 +142,7 @@ def frustum_halfspaces(camera: PinholeCamera, near: float,
                        margin: float = FRUSTUM_MARGIN) -> np.ndarray:
     """Half-spaces (5, 4) of the near plane ``z >= near`` and of the view frustum through the
     image border widened by ``margin`` of the image on each side, in normalised coordinates
-    (read-only: worked out once per camera, near plane and margin, not once per frame)."""
+    (read-only, worked out once per camera, near plane and margin: not once per frame)."""
     w, h = camera.width, camera.height
     n = 16
     border = np.concatenate([
@@ -156,13 +156,9 @@ def frustum_halfspaces(camera: PinholeCamera, near: float,
     ymin, ymax = float(r[:, 1].min()), float(r[:, 1].max())
     mx, my = margin * (xmax - xmin), margin * (ymax - ymin)
     xmin, xmax, ymin, ymax = xmin - mx, xmax + mx, ymin - my, ymax + my
-    out = np.array([
-        [0.0, 0.0, 1.0, -near],   # z >= near
-        [1.0, 0.0, -xmin, 0.0],   # x / z >= xmin
-        [-1.0, 0.0, xmax, 0.0],   # x / z <= xmax
-        [0.0, 1.0, -ymin, 0.0],   # y / z >= ymin
-        [0.0, -1.0, ymax, 0.0],   # y / z <= ymax
-    ])
+    out = np.array([[0.0, 0.0, 1.0, -near],                             # z >= near
+                    [1.0, 0.0, -xmin, 0.0], [-1.0, 0.0, xmax, 0.0],     # xmin <= x / z <= xmax
+                    [0.0, 1.0, -ymin, 0.0], [0.0, -1.0, ymax, 0.0]])    # ymin <= y / z <= ymax
     out.flags.writeable = False
     return out
 
