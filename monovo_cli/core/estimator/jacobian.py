@@ -42,17 +42,22 @@ def observation_rows(X: np.ndarray, gx: np.ndarray, gy: np.ndarray, fx: float, f
     given = [a for a in (distortion_jacobian, inverse_depth) if a is not None]
     out = np.empty((6, len(X)), np.result_type(X, gx, gy, *given))  # (np.stack's type)
     a1, a2, a3, r4, r5, r6 = out
-    if distortion_jacobian is None:
-        gx, gy = gx * fx, gy * fy
-    else:
-        D = distortion_jacobian
-        gx, gy = gx * D[:, 0, 0] + gy * D[:, 1, 0], gx * D[:, 0, 1] + gy * D[:, 1, 1]
     iz = 1.0 / z if inverse_depth is None else inverse_depth
-    # In place, the same operations as a = (gx iz, gy iz, -(a1 x + a2 y) iz) and the
+    # In place, the same operations as a = (gx fx iz, gy fy iz, -(a1 x + a2 y) iz) and the
     # rotation rows a x X: a keyframe's finest level is 10^5 points, and a fresh temporary
     # of that size a step cost more than the step.
-    np.multiply(gx, iz, out=a1)
-    np.multiply(gy, iz, out=a2)
+    D = distortion_jacobian
+    g_type = np.result_type(gx, gy, *(() if D is None else (D,)))  # that of (gx, gy) fx or D
+    if D is None:
+        np.multiply(gx, fx, out=a1)  # (computed in gx's type, as gx * fx is)
+        np.multiply(gy, fy, out=a2)
+    else:
+        a1[:], a2[:] = gx * D[:, 0, 0] + gy * D[:, 1, 0], gx * D[:, 0, 1] + gy * D[:, 1, 1]
+    if np.result_type(g_type, iz) == out.dtype:
+        a1 *= iz
+        a2 *= iz
+    else:  # inverse depths narrower than the points: the products in their own type
+        a1[:], a2[:] = a1.astype(g_type) * iz, a2.astype(g_type) * iz
     tmp = a2 * y
     np.multiply(a1, x, out=a3)
     a3 += tmp
