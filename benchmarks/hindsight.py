@@ -36,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import final_drift, load, machine, one_core
+from benchmarks.drives import SYNTH as DRIVE_CASES
 from monovo_cli import track_frames
 from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.io.config import load_init
@@ -44,9 +45,9 @@ from monovo_cli.mapping.smoothing import segment_log_distance_ratios, smoothed_d
 from monovo_cli.synth.write import synthesize
 
 CASES = ("flat", "rolling", "slope", "rocks", "plane", "exposure", "shadow", "lowtex")
-#: The plane drive's variants (``synthesize`` options, as ``benchmarks.drives`` renders them).
-PLANE_CASES = {"plane": {}, "exposure": {"exposure": True}, "shadow": {"shadow": 0.15},
-               "lowtex": {"low_texture": True}}
+#: The plane drive and its variants: ``benchmarks.drives``' cases, its "clean" named "plane".
+PLANE_CASES = {"plane": DRIVE_CASES["clean"],
+               **{k: DRIVE_CASES[k] for k in ("exposure", "shadow", "lowtex")}}
 
 
 def render(root: Path, kind: str, frames: int, seed: int) -> Path:
