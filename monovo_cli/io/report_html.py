@@ -19,7 +19,10 @@ import numpy as np
 from monovo_cli.errors import OutputError
 from monovo_cli.io.atomic import atomic_write_bytes
 
-PNG_COMPRESSION = 3  # zlib level: near the best size for drawings and noisy thumbnails, fast
+#: zlib level 1 and every row filtered by its left neighbour (libpng's default tries five
+#: filters a row): the page's PNGs within a tenth of level 3's size, in under half the time
+PNG_COMPRESSION = 1
+PNG_FILTER = cv2.IMWRITE_PNG_FILTER_SUB
 
 STYLE = """
 body { font-family: sans-serif; margin: 1.5em auto; max-width: 1100px; color: #222;
@@ -45,8 +48,10 @@ def esc(text: object) -> str:
 
 
 def png_bytes(image: np.ndarray) -> bytes:
-    """``image`` (H, W[, 3]) uint8 (grey or BGR) as PNG bytes at :data:`PNG_COMPRESSION`."""
-    ok, buf = cv2.imencode(".png", np.asarray(image), [cv2.IMWRITE_PNG_COMPRESSION, PNG_COMPRESSION])
+    """``image`` (H, W[, 3]) uint8 (grey or BGR) as PNG bytes (:data:`PNG_COMPRESSION`,
+    :data:`PNG_FILTER`)."""
+    ok, buf = cv2.imencode(".png", np.asarray(image), [cv2.IMWRITE_PNG_COMPRESSION, PNG_COMPRESSION,
+                                                     cv2.IMWRITE_PNG_FILTER, PNG_FILTER])
     if not ok:
         raise OutputError(f"cannot encode a {np.asarray(image).shape} image as PNG")
     return buf.tobytes()

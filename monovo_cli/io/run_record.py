@@ -34,6 +34,9 @@ from monovo_cli.io.sources import FrameSource
 from monovo_cli.version import __version__
 
 RUN_FILE = "run.yaml"
+#: libyaml's safe dumper where PyYAML was built with it (yaml.safe_dump's text, in C; a run
+#: writes the record twice), else PyYAML's own.
+_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
 FORMAT = "monovo-run-1"
 
 
@@ -68,6 +71,7 @@ def write_run_record(out_dir: Path, record: Mapping[str, Any]) -> Path:
     """Write ``record`` to ``out_dir/run.yaml`` atomically; returns its path."""
     path = Path(out_dir) / RUN_FILE
     text = ("# What produced the outputs in this folder (docs/guide.md \"File formats\").\n"
-            + yaml.safe_dump(_plain(dict(record)), sort_keys=False, default_flow_style=False))
+            + yaml.dump(_plain(dict(record)), Dumper=_DUMPER, sort_keys=False,
+                        default_flow_style=False))
     atomic_write_text(path, text)
     return path

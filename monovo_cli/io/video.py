@@ -23,6 +23,7 @@ import numpy as np
 
 from monovo_cli.errors import InputError, OutputError
 from monovo_cli.io.atomic import atomic_write_bytes, created_mode
+from monovo_cli.io.report_html import png_bytes
 
 VIDEO_EXTENSIONS = (".mp4", ".gif")
 # Browser-safe H.264: 4:2:0 chroma, moov atom first; crf 20 is visually lossless here.
@@ -186,9 +187,9 @@ def write_png_atomic(path: Path, image: np.ndarray) -> bytes:
     """Write ``image`` (H, W[, 3]) uint8 as a PNG through a temporary file + rename; returns
     the PNG's bytes."""
     path = Path(path)
-    ok, buf = cv2.imencode(".png", image)
-    if not ok:
-        raise OutputError(f"{path}: cannot encode PNG")
-    data = buf.tobytes()
+    try:
+        data = png_bytes(image)
+    except OutputError:
+        raise OutputError(f"{path}: cannot encode PNG") from None
     atomic_write_bytes(path, data)
     return data
