@@ -17,7 +17,8 @@ import numpy as np
 from monovo_cli.core.estimator.estimate import Estimate, KeyLevel, estimate_motion
 from monovo_cli.core.options import EstimatorOptions
 
-#: Points in view a split uses at most (an even stride over them): on a captured frame, and
+#: Points in view a split thins to, about: every floor(n / this)-th of the n in view (all n
+#: below twice this; never twice this many or more): on a captured frame, and
 #: on one that only anchors the next keyframe (a tracked drive's, where the time counts).
 #: Chosen on the 1024² MER turn (10 000 and 20 000 left one of its 37 rows beyond 4 std,
 #: 40 000 none) and the 512² speed drive (40 000 on its re-anchoring frames: 5.0 -> 4.5x ECC).
@@ -30,7 +31,8 @@ def split_half_fits(level: KeyLevel, image: np.ndarray, est: Estimate,
                     ) -> list[tuple[np.ndarray, np.ndarray]]:
     """``(cur_from_key of one half, of the other)`` (4x4 each) for the split at the median
     column and at the median row of ``level``'s points in view under ``est`` (the finest
-    level's, whose image is ``image``; at most ``max_points`` of them), each fitted at that
+    level's, whose image is ``image``; every ``floor(n / max_points)``-th of the n in view,
+    fewer than twice ``max_points``), each fitted at that
     level from ``est``'s pose and brightness; a split either of whose halves does not
     converge is left out."""
     if est.valid is None:
