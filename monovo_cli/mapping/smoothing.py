@@ -320,7 +320,7 @@ class SmoothedDrive:
 
 def smooth_drive(index: Sequence[int], world_from_cam: np.ndarray,
                  keys: Sequence[tuple[int, Anchored]], *, segments: bool = True,
-                 tilts: bool = False) -> SmoothedDrive:
+                 tilts: bool = False, planes: Sequence[Plane] | None = None) -> SmoothedDrive:
     """The poses ``world_from_cam`` (N, 4, 4) of frames ``index`` (N,), in order, re-read
     with the smoothed planes of ``keys`` (``(frame index, keyframe)``, oldest first): each
     frame's motion from the latest keyframe at or before it scaled by that keyframe's
@@ -329,7 +329,9 @@ def smooth_drive(index: Sequence[int], world_from_cam: np.ndarray,
     terrain the keyframes' tilts are of different ground, and the smoother's, which takes
     them for one plane's, moved the rolling drives' ends 0.25 -> 1.36 %). Frames before the
     first keyframe keep their poses. ``segments`` False: the mounting prior at the keyframes
-    alone, as the filter had it (for comparison)."""
+    alone, as the filter had it (for comparison). ``planes`` (K) given instead of the smoothed
+    ones (each keyframe's in its own camera: e.g. the true planes, to tell the re-reading's
+    error from the smoother's)."""
     W = np.asarray(world_from_cam, dtype=float)
     if not keys:
         return SmoothedDrive((), (), np.zeros((0, 4, 4)), W.copy())
@@ -337,7 +339,7 @@ def smooth_drive(index: Sequence[int], world_from_cam: np.ndarray,
     parts = _segments(index, W, keys)
     log_ratios = ([_mean_log_distance_ratio(k, rel) for k, (_, rel) in zip(anchored, parts)]
                   if segments else None)
-    planes = smoothed_planes(anchored, log_ratios)
+    planes = smoothed_planes(anchored, log_ratios) if planes is None else list(planes)
     samples = [k.samples if tilts else None for k in anchored]
     key_poses = smoothed_key_poses(anchored, planes, samples)
     out = W.copy()
