@@ -4,11 +4,12 @@
     python -m benchmarks.profile --sizes 512 --frames 60
 
 For each size a ``monovo synth --preset drive`` sequence (noise variance 10) is rendered
-(not timed), then ``monovo track SEQ -o OUT`` runs in this process on one core (OpenCV,
-BLAS and OpenMP on one thread; ``pipeline.track.track_sequence``, as the command runs it)
-with explicit timers around the library's functions: nothing in monovo_cli changes, the
-timers wrap the functions where the callers look them up (module attributes, class
-methods). Each part is timed exclusively: a function timed as one part and called inside
+(not timed), then ``monovo track SEQ -o OUT --threads 1`` runs in this process on one core
+(OpenCV, BLAS and OpenMP on one thread, the frames decoded in the frame loop, not ahead on a
+reader thread, whose timers would interleave with the parts'; ``pipeline.track.track_sequence``,
+as the command runs it) with explicit timers around the library's functions: nothing in
+monovo_cli changes, the timers wrap the functions where the callers look them up (module
+attributes, class methods). Each part is timed exclusively: a function timed as one part and called inside
 another (a level solve inside the acceptance step's plane test, a pyramid inside a new
 keyframe) counts for its own part only, so the parts and "other" add up to the frame loop.
 
@@ -248,7 +249,7 @@ def profile_drive(seq: Path, out: Path, options=None) -> Profile:
     try:
         w0 = time.perf_counter()
         run = track_sequence(seq, None, out, options or TrackOptions(), overwrite=True,
-                             progress=progress)
+                             progress=progress, threads=1)
         w1 = time.perf_counter()
     finally:
         uninstall(patches)
