@@ -266,7 +266,11 @@ def peer_on_drive(peer, seq: Path) -> MethodResult:
 
 
 def monovo_on_drive(seq: Path, out: Path, options=None, **track_kw) -> MethodResult:
-    """monovo end to end on a drive (``track_kw``: more arguments of ``track_sequence``)."""
+    """monovo end to end on a drive (``track_kw``: more arguments of ``track_sequence``), on
+    one thread unless ``track_kw`` says otherwise: the frames decoded in the frame loop, the
+    thread budget of the peers it is timed against (``monovo track`` decodes ahead on a
+    second thread by default)."""
+    track_kw.setdefault("threads", 1)
     with Stopwatch() as watch:
         track_sequence(seq, None, out, options or TrackOptions(), **track_kw)
     _, est, _ = read_motion_csv(out / "motion.csv")

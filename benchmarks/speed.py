@@ -30,8 +30,10 @@ rendered (not timed), then, on one core (OpenCV, BLAS and OpenMP on one thread):
 ``--threads N``: both methods on the same N threads instead: OpenCV's thread count for
 monovo and ECC alike (the process runs both), and ``monovo track --threads N`` (frames
 decoded ahead on a thread of their own from 2 on). BLAS stays on one thread (monovo pins it
-while tracking; ECC's small matrices do not use it). On one core (the default) monovo's
-reader thread runs as ``monovo track`` runs it, all cores: the CPU time in brackets counts it.
+while tracking; ECC's small matrices do not use it). On one core (the default) both run on
+one thread: monovo as ``monovo track --threads 1``, decoding its frames in the frame loop as
+ECC does (``monovo track`` itself decodes ahead on a second thread by default: timed that way
+it would have a core more than ECC).
 
 ``--repeats K``: the measurement of each size K times over, monovo and ECC alternating (a
 row each), then the ratios' median and range per size: on a shared machine whose speed
@@ -155,7 +157,7 @@ def profile_stages(seq: Path, out: Path) -> tuple[dict[str, float], list[tuple[s
     """Stage shares (fractions) of a profiled end-to-end run, and the top functions by own time."""
     prof = cProfile.Profile()
     prof.enable()
-    track_sequence(seq, None, out, TrackOptions(), overwrite=True)
+    track_sequence(seq, None, out, TrackOptions(), overwrite=True, threads=1)
     prof.disable()
     stats = pstats.Stats(prof)
     seconds = stage_shares(stats)
@@ -281,7 +283,8 @@ def main() -> None:
             synthesize(seq, preset="drive", frames=args.frames, size=(w, h), noise_var=10.0,
                        seed=args.seed)
             for _ in range(max(1, args.repeats)):
-                e2e, est_fps, ecc_fps = measure(seq, tmp / f"out_{size}", args.threads)
+                e2e, est_fps, ecc_fps = measure(seq, tmp / f"out_{size}",
+                                                1 if args.threads is None else args.threads)
                 speed_rows.append((size, e2e, est_fps, ecc_fps))
             if not args.no_profile:
                 shares, top = profile_stages(seq, tmp / f"out_{size}")
