@@ -9,9 +9,10 @@ For each size a ``monovo synth --preset drive`` sequence (noise variance 10) is 
 reader thread, whose timers would interleave with the parts'; ``pipeline.track.track_sequence``,
 as the command runs it) with explicit timers around the library's functions: nothing in
 monovo_cli changes, the timers wrap the functions where the callers look them up (module
-attributes, class methods). Each part is timed exclusively: a function timed as one part and called inside
-another (a level solve inside the acceptance step's plane test, a pyramid inside a new
-keyframe) counts for its own part only, so the parts and "other" add up to the frame loop.
+attributes, class methods). Each part is timed exclusively: a function timed as one part
+and called inside another (a level solve inside the acceptance step's plane test, a pyramid
+inside a new keyframe) counts for its own part only, so the parts and "other" add up to the
+frame loop.
 
 * **decode** -- ``FrameSource.read``: reading and decoding the PNG to float32 grey;
 * **pyramid** -- ``build_pyramid`` (the frame's, and a new keyframe's);

@@ -20,7 +20,8 @@ from monovo_cli.errors import OutputError
 from monovo_cli.io.atomic import atomic_write_bytes
 
 #: zlib level 1 and every row filtered by its left neighbour (libpng's default tries five
-#: filters a row): the page's PNGs within a tenth of level 3's size, in under half the time
+#: filters a row): about level 3's size, in less time (docs/benchmarks.md, "Speed at 20be4d5
+#: and 4ce717e")
 PNG_COMPRESSION = 1
 PNG_FILTER = cv2.IMWRITE_PNG_FILTER_SUB
 
