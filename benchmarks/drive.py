@@ -28,7 +28,7 @@ def run_drive(root: Path, frames: int, size: tuple[int, int], noise_var: float, 
               options: TrackOptions | None = None, **synth_kw) -> dict:
     synthesize(root / "seq", preset="drive", frames=frames, size=size, noise_var=noise_var,
                seed=seed, **synth_kw)
-    s = track_sequence(root / "seq", None, root / "out", options or TrackOptions())
+    s = track_sequence(root / "seq", None, root / "out", options or TrackOptions(), threads=1)
     _, est = read_tum(root / "out" / "trajectory.tum")
     _, gt = read_tum(root / "seq" / "groundtruth.tum")
     err, dist, heading = final_drift(est, gt)

@@ -65,7 +65,7 @@ def run_case(root: Path, name: str, frames: int, seed: int) -> dict:
     synthesize(seq, preset="drive", frames=frames, noise_var=10.0, seed=seed,
                **SYNTH.get(name, {}))
     faults = inject_faults(seq / "frames", frames) if name == "faults" else {}
-    s = track_sequence(seq, None, root / f"{name}_out", TrackOptions())
+    s = track_sequence(seq, None, root / f"{name}_out", TrackOptions(), threads=1)
     _, est = read_tum(root / f"{name}_out" / "trajectory.tum")
     _, gt = read_tum(seq / "groundtruth.tum")
     err, dist, heading = final_drift(est, gt)

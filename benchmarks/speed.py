@@ -87,9 +87,10 @@ STAGE_ORDER = ("decode", "pyramid", "warp+sample", "normal equations", "robust w
 # --------------------------------------------------------------------------- timing
 
 
-def end_to_end(seq: Path, out: Path, threads: int | None = None) -> dict:
+def end_to_end(seq: Path, out: Path, threads: int | None = 1) -> dict:
     """``runner.track_sequence`` timed as a whole and per frame (first to last frame done);
-    ``threads`` its ``threads`` (None: all cores, as ``monovo track``)."""
+    ``threads`` its ``threads`` (1: one core, ECC's budget; None: all cores, as ``monovo
+    track``)."""
     stamps: list[float] = []
     with Stopwatch() as watch:
         s = track_sequence(seq, None, out, TrackOptions(), overwrite=True, threads=threads,
@@ -220,7 +221,7 @@ def memory(tmp: Path, counts: list[int], seed: int) -> list[tuple[int, float, fl
     return rows
 
 
-def measure(seq: Path, out: Path, threads: int | None = None
+def measure(seq: Path, out: Path, threads: int | None = 1
             ) -> tuple[dict, tuple[float, float], tuple[float, float]]:
     """One drive's speed figures: :func:`end_to_end` (into ``out``, with ``threads``),
     :func:`estimator_only` frames/s (wall, CPU) and the ECC peer's frames/s (wall, CPU) on
