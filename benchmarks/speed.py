@@ -16,7 +16,8 @@ rendered (not timed), then, on one core (OpenCV, BLAS and OpenMP on one thread):
   fixed start-up and final writing);
 * **estimator only** -- the frames decoded into memory first, then ``odometry.estimate_frames``;
 * **ECC peer** -- ``benchmarks.peers.EccPeer`` frame to frame on the same PNGs, decoding
-  included, for the speed ratio;
+  included, for the speed ratio: at the peers tables' stop (1e-6), and at OpenCV's own
+  default stop (1e-3), what a user who picks ECC gets;
 * **stages** -- a cProfile of the end-to-end run, each function's own time attributed to the
   nearest enclosing stage: decode (``frames.read_gray``/``decode_gray``), pyramid
   (``pyramid.build_pyramid``), warp+sample (``estimate.residuals``, ``sample_at``,
@@ -58,7 +59,7 @@ import time
 from pathlib import Path
 
 from benchmarks.common import Stopwatch, final_drift, load, machine, one_core
-from benchmarks.peers import EccPeer, peer_on_drive
+from benchmarks.peers import ECC_EPS_OPENCV, EccPeer, peer_on_drive
 from monovo_cli.core.odometry import estimate_frames
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.io.config import load_init
@@ -224,16 +225,19 @@ def memory(tmp: Path, counts: list[int], seed: int) -> list[tuple[int, float, fl
 def measure(seq: Path, out: Path, threads: int | None = 1
             ) -> tuple[dict, tuple[float, float], tuple[float, float]]:
     """One drive's speed figures: :func:`end_to_end` (into ``out``, with ``threads``),
-    :func:`estimator_only` frames/s (wall, CPU) and the ECC peer's frames/s (wall, CPU) on
-    the same PNGs."""
+    :func:`estimator_only` frames/s (wall, CPU) and the ECC peer's frames/s (wall, CPU; then
+    the same at OpenCV's default stop, ``ECC_EPS_OPENCV``) on the same PNGs."""
     e2e = end_to_end(seq, out, threads)
     est_fps = estimator_only(seq)
     ecc = peer_on_drive(EccPeer(), seq)
-    return e2e, est_fps, (ecc.count / ecc.seconds, ecc.count / ecc.cpu)
+    quick = peer_on_drive(EccPeer(ECC_EPS_OPENCV), seq)
+    return e2e, est_fps, (ecc.count / ecc.seconds, ecc.count / ecc.cpu,
+                          quick.count / quick.seconds, quick.count / quick.cpu)
 
 
 SPEED_HEAD = ("| size | end to end, whole call | end to end, per frame (wall) | estimator only | "
               "ms/frame end to end | target end to end | ECC peer, end to end | monovo / ECC | "
+              "ECC at OpenCV's default stop (1e-3), end to end | monovo / that | "
               "lost | re-anchored | final error (% of distance) |")
 
 
@@ -241,12 +245,13 @@ def speed_row(size: str, e: dict, est_fps: tuple[float, float], ecc_fps: tuple[f
               target: float | None = None) -> str:
     """One row of ``SPEED_HEAD`` from :func:`measure`'s figures (``target``: frames/s end to
     end; default ``TARGET_FPS`` of the size)."""
-    (est, est_cpu), (ecc, ecc_cpu) = est_fps, ecc_fps
+    (est, est_cpu), (ecc, ecc_cpu, quick, quick_cpu) = est_fps, ecc_fps
     target = TARGET_FPS.get(size) if target is None else target
     return (f"| {size} | {e['fps']:.1f} ({e['fps_cpu']:.1f}) | {e['fps_steady']:.1f} | "
             f"{est:.1f} ({est_cpu:.1f}) | {1000 / e['fps']:.1f} ({1000 / e['fps_cpu']:.1f}) | "
             f"{'–' if target is None else f'≥ {target:g}'} | {ecc:.1f} ({ecc_cpu:.1f}) | "
-            f"{e['fps'] / ecc:.2f} ({e['fps_cpu'] / ecc_cpu:.2f}) | {e['lost']} | "
+            f"{e['fps'] / ecc:.2f} ({e['fps_cpu'] / ecc_cpu:.2f}) | {quick:.1f} ({quick_cpu:.1f}) | "
+            f"{e['fps'] / quick:.2f} ({e['fps_cpu'] / quick_cpu:.2f}) | {e['lost']} | "
             f"{e['reanchored']} | {e['drift_pct']:.3f} |")
 
 
@@ -304,17 +309,18 @@ def print_speed(args, speed_rows, stage_cols) -> None:
     print(f"### Frames/s on {where} ({args.frames}-frame drives, noise variance 10, seed "
           f"{args.seed}); wall clock, CPU time of this process in brackets\n")
     print(SPEED_HEAD)
-    print("|" + " --- |" * 11)
+    print("|" + " --- |" * 13)
     for row in speed_rows:
         print(speed_row(*row))
     if args.repeats > 1:
         print()
         for size in dict.fromkeys(size for size, *_ in speed_rows):
-            wall = [e["fps"] / ecc[0] for s, e, _, ecc in speed_rows if s == size]
-            cpu = [e["fps_cpu"] / ecc[1] for s, e, _, ecc in speed_rows if s == size]
-            print(f"{size}: monovo / ECC over {len(wall)} pairs, median {statistics.median(wall):.2f}x "
-                  f"wall ({min(wall):.2f}-{max(wall):.2f}), {statistics.median(cpu):.2f}x CPU "
-                  f"({min(cpu):.2f}-{max(cpu):.2f})")
+            for label, at in (("ECC", 0), ("ECC at OpenCV's default stop", 2)):
+                wall = [e["fps"] / ecc[at] for s, e, _, ecc in speed_rows if s == size]
+                cpu = [e["fps_cpu"] / ecc[at + 1] for s, e, _, ecc in speed_rows if s == size]
+                print(f"{size}: monovo / {label} over {len(wall)} pairs, median "
+                      f"{statistics.median(wall):.2f}x wall ({min(wall):.2f}-{max(wall):.2f}), "
+                      f"{statistics.median(cpu):.2f}x CPU ({min(cpu):.2f}-{max(cpu):.2f})")
     print(f"\n({load()} at the end.)")
     if stage_cols:
         print("\n### Time per frame by stage (cProfile of the end-to-end run; % of the profiled "
