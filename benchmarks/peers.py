@@ -14,7 +14,8 @@ OpenCV and given the same plane (init.yaml's normal n and distance d in the prev
   pyramid (coarsest side >= 32 px), started from the identity at the coarsest level and
   refined level by level (50 iterations or 1e-6 correlation change per level, 5x5 Gaussian
   pre-filter); and the same stopped at OpenCV's own default, 1e-3 (``ECC_EPS_OPENCV``), what
-  a user who picks ECC gets: on the drives, the same accuracy in about half the time.
+  a user who picks ECC gets: on the drives nearly the same accuracy in a third to half the
+  time.
 
 Both give a homography ``H`` mapping frame k-1 pixels to frame k pixels. For the plane
 ``{X : n . X = d}`` in camera k-1 and ``X_k = R X_{k-1} + t``,
@@ -82,7 +83,8 @@ RANSAC_ITERATIONS = 2000
 ECC_ITERATIONS = 50
 ECC_EPS = 1e-6  # the stop of the accuracy tables: the correlation's gain per iteration
 #: OpenCV's own default stop for findTransformECC: what a user who picks ECC gets; on the 512²
-#: drive the same accuracy as ECC_EPS's in half the time (docs/benchmarks.md, "ECC's stop")
+#: drives nearly the same accuracy as ECC_EPS's in a third to a half of the time
+#: (docs/benchmarks.md, "ECC's stop")
 ECC_EPS_OPENCV = 1e-3
 ECC_GAUSS = 5
 ECC_MIN_SIDE = 32  # px, coarsest pyramid level
