@@ -18,7 +18,8 @@ ground):
 
 Every drive is tracked end to end with default options (``runner.track_sequence``, PNG
 decoding included, on one core), and the ECC peer of ``benchmarks.peers`` runs on the same
-PNGs in the same run (it carries init.yaml's plane with its own motions). Reported per
+PNGs in the same run (it carries init.yaml's plane with its own motions), at the peers'
+stop and at OpenCV's own default stop. Reported per
 method: the final position error (% of the distance) of trajectory.tum, and for monovo also
 of motion.csv's motions composed (as streamed; trajectory.tum is re-scaled in hindsight with
 the smoothed keyframe planes, ``monovo_cli.mapping.smoothing``), the final heading error (the angle of
@@ -44,7 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import final_drift, load, machine, one_core, std_columns
-from benchmarks.peers import EccPeer, monovo_on_drive, peer_on_drive
+from benchmarks.peers import ECC_EPS_OPENCV, EccPeer, monovo_on_drive, peer_on_drive
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.io.formats import read_motion_csv, read_tum
 from monovo_cli.io.terrain import read_ply
@@ -111,20 +112,25 @@ def run_case(root: Path, kind: str, frames: int, seed: int, renders: Path | None
     mono = monovo_on_drive(seq, out, options or TrackOptions(), terrain_out=True, overwrite=True)
     heights = terrain_errors(seq, out)
     ecc = peer_on_drive(EccPeer(), seq)
+    quick = peer_on_drive(EccPeer(ECC_EPS_OPENCV), seq)  # what a user who picks ECC gets
     _, est, status = read_motion_csv(out / "motion.csv")
     _, gt, _ = read_motion_csv(seq / "groundtruth_motion.csv")
     std = std_columns(out / "motion.csv")
     honesty = std_honesty(mono.errors, std)
     beyond = rows_beyond(mono.errors, std)
-    ecc_est = gt.copy()  # (peer_on_drive keeps ECC's errors, not its motions: est = gt + error)
-    ecc_est[:, :3, 3] += np.nan_to_num(ecc.errors[:, :3])
+
+    def peer_est(r) -> np.ndarray:  # (peer_on_drive keeps a peer's errors, not its motions)
+        out = gt.copy()
+        out[:, :3, 3] += np.nan_to_num(r.errors[:, :3])
+        return out
     _, gt_traj = read_tum(seq / "groundtruth.tum")
     streamed = np.concatenate([[np.eye(4)], est]).copy()
     for k in range(1, len(streamed)):
         streamed[k] = streamed[k - 1] @ streamed[k]
     s_err, s_dist, _ = final_drift(streamed, gt_traj)
     rows = []
-    for r, e, lost in ((mono, est, status.count("lost")), (ecc, ecc_est, ecc.failed)):
+    for r, e, lost in ((mono, est, status.count("lost")), (ecc, peer_est(ecc), ecc.failed),
+                       (quick, peer_est(quick), quick.failed)):
         err, dist, heading = r.drift
         rows.append({"method": r.name, "distance": dist, "pct": 100 * err / dist,
                      "streamed": f"{100 * s_err / s_dist:.3f}" if r is mono else "",
