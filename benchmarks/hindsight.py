@@ -76,9 +76,8 @@ def run_case(seq: Path, kind: str) -> dict:
     ways = {"streamed": W, "keyframes": smoothed_poses(index, W, chain, segments=False),
             "segments": smoothed_poses(index, W, chain), "written": run.trajectory}
     if kind in PLANE_CASES:  # the written way with the true planes: the re-reading's own error
-        plane0 = load_init(seq / "init.yaml").plane
-        truth = [plane0.in_frame(se3_inv(gt[i]) @ gt[0]) for i, _ in chain]
-        ways["true planes"] = smooth_drive(index, W, chain, tilts=True, planes=truth).world_from_cam
+        ways["true planes"] = smooth_drive(index, W, chain, tilts=True,
+                                           planes=true_planes(seq, chain, gt)).world_from_cam
     row = {"kind": kind, "frames": run.frames, "keys": len(chain)}
     for name, P in ways.items():
         err, dist, _ = final_drift(P, gt)
@@ -99,10 +98,16 @@ def true_distances(seq: Path, kind: str, chain, gt: np.ndarray) -> np.ndarray | 
     if kind == "flat":  # the ground is z = 0 of the terrain's frame
         g_from_cam = np.load(seq / "terrain.npz")["g_from_cam"]
         return np.array([g_from_cam[i][2, 3] for i, _ in chain])
-    if kind in PLANE_CASES:  # init.yaml is exact: frame 0's plane, carried by the true poses
-        plane0 = load_init(seq / "init.yaml").plane
-        return np.array([plane0.in_frame(se3_inv(gt[i]) @ gt[0]).distance for i, _ in chain])
+    if kind in PLANE_CASES:
+        return np.array([p.distance for p in true_planes(seq, chain, gt)])
     return None
+
+
+def true_planes(seq: Path, chain, gt: np.ndarray) -> list:
+    """Each keyframe's true plane in its camera on a plane drive: init.yaml is exact there,
+    frame 0's plane, carried by the true poses."""
+    plane0 = load_init(seq / "init.yaml").plane
+    return [plane0.in_frame(se3_inv(gt[i]) @ gt[0]) for i, _ in chain]
 
 
 def table(rows: list[dict]) -> str:
