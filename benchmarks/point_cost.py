@@ -4,8 +4,8 @@
     python -m benchmarks.point_cost --sizes 512 --frames 100 --shares 1 0.5
     python -m benchmarks.point_cost --sections information   # seconds
 
-The one setting that scales the whole frame loop (every residual evaluation, every weighted
-normal matrix, the keyframes' rows) is the number of observation points. Issue 26 asks for
+The one setting that scales the frame loop's per-point work (every residual evaluation,
+every weighted normal matrix, the keyframes' rows) is the number of observation points. Issue 26 asks for
 ≥ 6x the ECC peer at 512² and ≥ 5x at 256² "without giving back accuracy"; this script says
 what the first would cost in the second, so that the trade is a decision made on figures.
 
