@@ -61,6 +61,10 @@ from monovo_cli.core.plane.belief import PlaneLink, from_chart, smoothed_correct
 from monovo_cli.geometry.lie import se3_inv, so3_exp_rows
 from monovo_cli.geometry.plane import Plane
 
+#: motions re-read at once (:func:`_reread_all`): a drive's peak memory stays flat with its
+#: length, and the batch still amortises the calls
+REREAD_CHUNK = 512
+
 
 class Anchored(Protocol):
     """What hindsight needs of a keyframe (a :class:`~monovo_cli.core.keyframe.Keyframe`
@@ -222,8 +226,9 @@ def reread_motions(key_from_cam: np.ndarray, plane: Plane, smoothed: Plane,
 def _reread_all(jobs: Sequence[tuple[np.ndarray, Plane, Plane, np.ndarray | None]],
                 iterations: int = 2) -> list[np.ndarray]:
     """:func:`reread_motions` of every ``(key_from_cam, plane, smoothed, samples)`` of
-    ``jobs``, the Gauss-Newton of all their motions in one pass (a drive's few thousand
-    frames, re-read at every checkpoint)."""
+    ``jobs``, the Gauss-Newton of their motions REREAD_CHUNK at a time (a drive's few thousand
+    frames, re-read at every checkpoint: its arrays are (motions, samples, 2, 6), which over
+    all the motions at once grew the run's peak memory with its length)."""
     out, Xo, Xs, where = [], [], [], []
     for j, (motions, plane, smoothed, samples) in enumerate(jobs):
         M = np.array(motions, dtype=float).reshape(-1, 4, 4)
@@ -248,9 +253,21 @@ def _reread_all(jobs: Sequence[tuple[np.ndarray, Plane, Plane, np.ndarray | None
     X, Y, V = pad.copy(), pad.copy(), np.zeros((len(where), m), bool)
     for a, (x, y) in enumerate(zip(Xo, Xs)):
         X[a, :len(x)], Y[a, :len(y)], V[a, :len(x)] = x, y, True
-    X, Y, V = X[rows], Y[rows], V[rows]
     T = np.concatenate([np.asarray(jobs[j][0], dtype=float).reshape(-1, 4, 4) for j in where])
     M = np.concatenate([out[j] for j in where])
+    for lo in range(0, len(M), REREAD_CHUNK):
+        at = slice(lo, lo + REREAD_CHUNK)
+        M[at] = _reread_chunk(X[rows[at]], Y[rows[at]], V[rows[at]], T[at], M[at], iterations)
+    for j, part in zip(where, np.split(M, np.cumsum(n)[:-1])):
+        out[j] = part
+    return out
+
+
+def _reread_chunk(X: np.ndarray, Y: np.ndarray, V: np.ndarray, T: np.ndarray, M: np.ndarray,
+                  iterations: int) -> np.ndarray:
+    """The motions ``M`` (n, 4, 4) re-read: each the pose from which the points ``Y`` (n, m,
+    3; on the smoothed plane) project where the points ``X`` (on the keyframe's plane) did
+    from ``T`` (n, 4, 4), at the samples ``V`` (n, m) holds; Gauss-Newton from ``M``."""
     R, t = T[:, :3, :3], T[:, :3, 3]
     P = (X - t[:, None]) @ R  # R^T (X - t) per point, (n, m, 3)
     seen = V & (P[..., 2] > 1e-9)
@@ -276,9 +293,8 @@ def _reread_all(jobs: Sequence[tuple[np.ndarray, Plane, Plane, np.ndarray | None
         step = -np.linalg.solve(H, Jt @ r.reshape(len(J), -1, 1))[..., 0]
         t2 = t2 + (R2 @ step[:, 3:, None])[..., 0]
         R2 = R2 @ so3_exp_rows(step[:, :3])
-    M[:, :3, :3], M[:, :3, 3] = R2, t2
-    for j, part in zip(where, np.split(M, np.cumsum(n)[:-1])):
-        out[j] = part
+    out = M.copy()
+    out[:, :3, :3], out[:, :3, 3] = R2, t2
     return out
 
 
