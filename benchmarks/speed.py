@@ -3,7 +3,8 @@
     python -m benchmarks.speed                         # 200-frame drives at 4 sizes, ~6 min
     python -m benchmarks.speed --sizes 512x512 --frames 100
     python -m benchmarks.speed --memory                # only peak RSS over 500 and 5000 frames
-                                                       # (renders 5000 frames once: ~10 min)
+                                                       # (renders 5000 frames once: ~10 min;
+                                                       # --renders DIR keeps them for next time)
     python -m benchmarks.speed --threads 2 --no-profile  # both on two threads
     python -m benchmarks.speed --sizes 512x512 --frames 100 --no-profile --repeats 5
 
@@ -209,11 +210,22 @@ def prefix_sequence(full: Path, dest: Path, n: int) -> Path:
     return dest
 
 
-def memory(tmp: Path, counts: list[int], seed: int) -> list[tuple[int, float, float]]:
-    full = tmp / "mem_full"
-    t0 = time.perf_counter()
-    synthesize(full, preset="drive", frames=max(counts), size=(512, 512), noise_var=10.0, seed=seed)
-    print(f"(rendered {max(counts)} frames in {time.perf_counter() - t0:.0f} s)\n", file=sys.stderr)
+def memory(tmp: Path, counts: list[int], seed: int,
+           renders: Path | None = None) -> list[tuple[int, float, float]]:
+    """Peak RSS and seconds of ``monovo track`` over the first ``counts`` frames of one
+    512² drive, rendered into ``renders`` (kept, and used again when it holds the drive
+    whole) or ``tmp``."""
+    full = (renders or tmp) / f"mem_drive_{max(counts)}_seed{seed}"
+    frames = full / "frames"
+    if renders is not None and frames.is_dir() and len(list(frames.glob("*.png"))) == max(counts) \
+            and (full / "groundtruth.tum").is_file():
+        print(f"(the {max(counts)} frames rendered before in {full})\n", file=sys.stderr)
+    else:
+        t0 = time.perf_counter()
+        synthesize(full, preset="drive", frames=max(counts), size=(512, 512), noise_var=10.0,
+                   seed=seed)
+        print(f"(rendered {max(counts)} frames in {time.perf_counter() - t0:.0f} s)\n",
+              file=sys.stderr)
     rows = []
     for n in sorted(counts):
         seq = full if n == max(counts) else prefix_sequence(full, tmp / f"mem_{n}", n)
@@ -267,6 +279,9 @@ def main() -> None:
     ap.add_argument("--memory", action="store_true",
                     help="only the peak RSS over --memory-frames frames (no speed tables)")
     ap.add_argument("--memory-frames", type=int, nargs="+", default=[500, 5000])
+    ap.add_argument("--renders", type=Path, default=None,
+                    help="--memory: keep the rendered drive in this folder and use it again "
+                         "(its render takes about 15 min)")
     ap.add_argument("--repeats", type=int, default=1,
                     help="measure each size this many times, alternating (default 1)")
     ap.add_argument("--threads", type=int, default=None,
@@ -296,7 +311,7 @@ def main() -> None:
                 shares, top = profile_stages(seq, tmp / f"out_{size}")
                 stage_cols.append((size, shares, top, 1000.0 / e2e["fps"]))
             print(f"({size} done)", file=sys.stderr)
-        mem_rows = memory(tmp, args.memory_frames, args.seed) if args.memory else None
+        mem_rows = memory(tmp, args.memory_frames, args.seed, args.renders) if args.memory else None
 
     if speed_rows:
         print_speed(args, speed_rows, stage_cols)
