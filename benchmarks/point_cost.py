@@ -52,12 +52,12 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.common import Stopwatch, final_drift, load, machine, one_core, std_columns
+from benchmarks.common import Stopwatch, load, machine, one_core, std_columns
+from benchmarks.integrity import final_pct
 from benchmarks.peers import EccPeer, monovo_on_drive, peer_on_drive
 from benchmarks.real import REAL, real_sequences
 from monovo_cli.core.odometry import Odometry
 from monovo_cli.core.options import TrackOptions
-from monovo_cli.geometry.lie import se3_inv
 from monovo_cli.io.formats import read_tum
 from monovo_cli.pipeline.track import track_sequence
 from monovo_cli.pipeline.tracking import open_sequence
@@ -170,6 +170,8 @@ def information_rows(sizes: list[int], frames: int, root: Path) -> list[str]:
 
 
 def real_rows(shares: list[float], real: Path, root: Path) -> list[str] | None:
+    if 1.0 not in shares:  # (the others are shares of what share 1 used)
+        raise SystemExit("--shares must include 1 for the real sequences")
     seqs = real_sequences(real)
     if seqs is None:
         return None
@@ -182,14 +184,10 @@ def real_rows(shares: list[float], real: Path, root: Path) -> list[str] | None:
             with Stopwatch() as watch:
                 track_sequence(seq.directory, None, out, opts, overwrite=True, threads=1)
             _, traj = read_tum(out / "trajectory.tum")
-            traj = np.array([se3_inv(traj[0]) @ t for t in traj])
-            err, dist, _ = final_drift(traj, seq.gt_world_from_cam)
             if used is None:
-                if share != 1.0:
-                    raise SystemExit("--shares must include 1 for the real sequences")
                 used = median_points(out)
             rows.append(f"| {seq.name} | {share:g} | {opts.max_points or 'default'} | "
-                        f"{median_points(out)} | {100 * err / dist:.2f} | "
+                        f"{median_points(out)} | {final_pct(traj, seq.gt_world_from_cam):.2f} | "
                         f"{len(traj) / watch.wall:.1f} ({len(traj) / watch.cpu:.1f}) |")
     return rows
 

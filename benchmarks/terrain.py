@@ -120,9 +120,9 @@ def run_case(root: Path, kind: str, frames: int, seed: int, renders: Path | None
     beyond = rows_beyond(mono.errors, std)
 
     def peer_est(r) -> np.ndarray:  # (peer_on_drive keeps a peer's errors, not its motions)
-        out = gt.copy()
-        out[:, :3, 3] += np.nan_to_num(r.errors[:, :3])
-        return out
+        motions = gt.copy()
+        motions[:, :3, 3] += np.nan_to_num(r.errors[:, :3])
+        return motions
     _, gt_traj = read_tum(seq / "groundtruth.tum")
     streamed = np.concatenate([[np.eye(4)], est]).copy()
     for k in range(1, len(streamed)):
