@@ -54,7 +54,7 @@ from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import orthonormalize, se3_exp, se3_inv, se3_log, skew, so3_log
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.image.gradients import difference_sigma, estimate_noise_sigma
-from monovo_cli.image.pyramid import build_pyramid
+from monovo_cli.image.pyramid import build_pyramid, extend_pyramid
 
 
 @dataclass(frozen=True)
@@ -504,7 +504,9 @@ class Odometry:
     # -- checks -----------------------------------------------------------------------
     def _search(self, key: Keyframe, pyr: list[np.ndarray], guess: np.ndarray,
                 gain: float, bias: float) -> np.ndarray:
-        return coarse_search(key.levels[-1], pyr[-1], guess, options=self.options.estimator,
+        top = len(key.levels) - 1  # (a pyramid built for another keyframe may differ in length)
+        return coarse_search(key.levels[top], extend_pyramid(pyr, top + 1)[top], guess,
+                             options=self.options.estimator,
                              noise_sigma=self._sigma, gain=gain, bias=bias)
 
     def _score(self, est: Estimate) -> float:

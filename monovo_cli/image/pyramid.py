@@ -22,7 +22,15 @@ def num_levels(width: int, height: int, *, min_size: int = 32, max_levels: int =
 
 def build_pyramid(image: np.ndarray, levels: int) -> list[np.ndarray]:
     """``levels`` float32 images, finest first; ``image`` (H, W) grey."""
-    pyr = [np.ascontiguousarray(image, dtype=np.float32)]
-    for _ in range(levels - 1):
+    return extend_pyramid([np.ascontiguousarray(image, dtype=np.float32)], levels)
+
+
+def extend_pyramid(pyramid: list[np.ndarray], levels: int) -> list[np.ndarray]:
+    """``pyramid`` (finest first, float32) with at least ``levels`` levels: the coarser ones
+    missing made from its coarsest, as :func:`build_pyramid` makes them. A keyframe built on
+    another frame can keep more levels than the one a frame's pyramid was built for (its
+    coarse levels kept where the first's were too sparse)."""
+    pyr = list(pyramid)
+    while len(pyr) < levels:
         pyr.append(cv2.pyrDown(pyr[-1], borderType=cv2.BORDER_REPLICATE))
     return pyr

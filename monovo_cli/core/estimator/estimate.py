@@ -61,6 +61,7 @@ from monovo_cli.core.estimator.jacobian import distortion_jacobian, observation_
 from monovo_cli.core.estimator.robust import inlier_fraction, mad_scale, rho_sum, robust_weights
 from monovo_cli.core.options import EstimatorOptions
 from monovo_cli.geometry.lie import se3_exp
+from monovo_cli.image.pyramid import extend_pyramid
 from monovo_cli.image.sampling import INTERPOLATION, pixel_grid, sample_at
 
 PLANAR_TOLERANCE = 1e-7  # |m . X - 1| of points lifted onto one plane (rounding only)
@@ -417,13 +418,15 @@ def estimate_motion(levels: Sequence[KeyLevel], pyramid: Sequence[np.ndarray],
     """Coarse-to-fine maximum-likelihood pose of the current frame relative to the keyframe.
 
     ``levels[l]`` are the keyframe's points at pyramid level l (finest first) and
-    ``pyramid[l]`` the current frame's level-l image (float32). ``cur_from_key`` (4x4) is the
+    ``pyramid[l]`` the current frame's level-l image (float32; levels it lacks are made from
+    its coarsest, :func:`~monovo_cli.image.pyramid.extend_pyramid`). ``cur_from_key`` (4x4) is the
     initial guess, ``gain``/``bias`` that of the brightness model. Levels above
     ``first_level`` are skipped. Returns the :class:`Estimate` at the finest level, its
     covariance ``sigma^2 (O^T W O)^-1`` (docs/algorithm.md section 3); ValueError for an
     unknown ``options.interpolation``.
     """
     opts = options or EstimatorOptions()
+    pyramid = extend_pyramid(pyramid, len(levels))
     T = np.array(cur_from_key, dtype=np.float64)
     total = 0
     top = len(levels) - 1 if first_level is None else min(first_level, len(levels) - 1)
