@@ -102,6 +102,7 @@ CHANCE_SHARE = 0.5  # a fit leaving half the keyframe's intensity variance is no
 REINIT_NOISE_SHARE = 0.3  # a fresh keyframe needs noise below this share of the contrast
 COVER = 4.0  # a row's error is to stay within this many of its std
 UNFORESEEN_COVER = 4.0  # a change from the prediction beyond this many std is not foreseen
+REFUTED_MSD_RATIO = 2.0  # a fit from the prediction this much worse than the one kept refutes it
 
 
 class OdometryState(Enum):
@@ -272,6 +273,7 @@ class Odometry:
                                   first_level=self.options.predicted_top_level if predicted else None)
             reason = self._failure(est, key)
         captured = est is None or bool(reason)
+        from_prediction = est if predicted else None  # (its fit, failing or not)
         if captured:
             est, reason = self._capture(index, key, image, pyr, guess, est, reason)
         if not reason:
@@ -288,7 +290,8 @@ class Odometry:
             closer = self._resolve_gap(index, image, pyr)
             if closer is not None and closer[1].points > 2 * est.points:
                 return self._reinit(index, timestamp, image, pyr, "", resolved=closer)
-        return self._accept(index, timestamp, image, pyr, est, captured=captured)
+        return self._accept(index, timestamp, image, pyr, est, captured=captured,
+                            refuted=_refuted(from_prediction, est, captured))
 
     def _capture(self, index: int, key: Keyframe, image: np.ndarray, pyr: list[np.ndarray],
                  guess: np.ndarray, est: Estimate | None, reason: str, *,
@@ -341,10 +344,12 @@ class Odometry:
 
     # -- outcomes ---------------------------------------------------------------------
     def _accept(self, index: int, timestamp: float, image: np.ndarray, pyr: list[np.ndarray],
-                est: Estimate, *, captured: bool = False) -> FrameResult:
+                est: Estimate, *, captured: bool = False, refuted: bool = False) -> FrameResult:
         """Record ``est`` (``captured``: it came from the capture's starts, not from the
-        prediction). A captured frame's, and a re-anchoring frame's, split-half spread joins
-        its covariance (``_split_spread``)."""
+        prediction; ``refuted``: the images refuted the prediction, :func:`_refuted`). A
+        captured frame's, and a re-anchoring frame's, split-half spread joins its covariance
+        (``_split_spread``); a motion the prediction did not foresee widens it
+        (:meth:`_unforeseen`) unless the prediction was refuted."""
         closing = None  # the lost frames before this one: what the prediction would say here
         if self._lost_run and self._good is not None:
             predicted = self._predicted
@@ -408,8 +413,9 @@ class Odometry:
             cov = cov + _from_predicted(self._gap_variance, prev_from_cur)
             self._gap_variance = np.zeros(6)
         motion = _motion_change(prev_from_cur, np.eye(4))
-        cov = cov + np.diag(self._unforeseen(motion, np.sqrt(np.clip(np.diag(cov), 0.0, None)),
-                                             index))
+        if not refuted:
+            cov = cov + np.diag(self._unforeseen(motion, np.sqrt(np.clip(np.diag(cov), 0.0, None)),
+                                                 index))
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         if self._last_motion is not None and self._last_accepted == index - 1:
             self._motion_changes.append(np.abs(motion - self._last_motion))
@@ -745,6 +751,22 @@ class Odometry:
                     reason=f"{words}; the gap re-solved from frame {good.index}",
                     gap=GapClosure(good.index, res.world_from_cam, variances))
         return res
+
+
+def _refuted(from_prediction: Estimate | None, est: Estimate, captured: bool) -> bool:
+    """Whether the images refute the constant-velocity prediction as the frame's motion, so a
+    change from it needs no wider std: the estimator started at the prediction
+    (``from_prediction``, None: it did not) and either converged to ``est`` itself (not
+    ``captured``: the prediction is not a minimum of the fit, or it would have stayed there),
+    or its fit is worse than the captured ``est``'s by more than REFUTED_MSD_RATIO (robust
+    msd: a turn in place predicted as a step fits near chance)."""
+    if from_prediction is None:
+        return False
+    if not captured:
+        return True
+    if not from_prediction.converged or not np.isfinite(from_prediction.msd):
+        return True
+    return _robust_msd(from_prediction) > REFUTED_MSD_RATIO * _robust_msd(est)
 
 
 def _from_predicted(variance: np.ndarray, prev_from_cur: np.ndarray) -> np.ndarray:

@@ -201,22 +201,25 @@ def test_a_fit_that_degrades_everywhere_re_anchors(drive):
     assert with_rule >= without + 3, (with_rule, without)
 
 
-def test_a_change_the_prediction_did_not_foresee_keeps_the_estimate_and_states_it(synth_drive):
+def test_a_change_the_images_refute_the_prediction_of_keeps_its_own_std(synth_drive):
     """MER spacing (seed 2): frame 4 is the first turn in place after three 0.7 m steps, a
-    change of 0.7 m and 17 deg the recent motions did not foresee. The fit holds, so the row
-    keeps its estimate (within a centimetre and 0.1 deg) and is not lost, but its std covers
-    the constant-velocity prediction within 4 std on every axis: had the fit found a wrong
-    minimum, the truth would be there."""
+    change of 0.7 m and 17 deg the recent motions did not foresee. The estimator started at
+    the prediction fails the checks there (a step where the rover turned fits near chance),
+    the capture finds the turn, so the images refute the prediction: the row keeps its
+    estimate (within a centimetre and 0.1 deg), is not lost, and its std stays its own,
+    within 4 std of the truth. (Its std was widened to cover the prediction as well, 0.7 m
+    and 17 deg, the turn's rows 100-1000 times their error: issue 40's std too large.)"""
     seq = synth_drive(preset="mer", frames=8, size=(256, 256), noise_var=10.0, seed=2)
     res = _track(seq)
     _, motions, _ = read_motion_csv(seq / "groundtruth_motion.csv")
     r, before, G = res[4], res[3], motions[3]
     assert r.status != FrameStatus.LOST
     T = r.prev_from_cur
-    assert np.linalg.norm(T[:3, 3] - G[:3, 3]) < 0.01
-    assert np.degrees(np.linalg.norm(so3_log(T[:3, :3] @ G[:3, :3].T))) < 0.1
+    e = np.r_[T[:3, 3] - G[:3, 3], so3_log(T[:3, :3] @ G[:3, :3].T)]
+    assert np.linalg.norm(e[:3]) < 0.01
+    assert np.degrees(np.linalg.norm(e[3:])) < 0.1
+    assert np.all(np.abs(e) <= 4.0 * r.std), e / r.std
     P = before.prev_from_cur
     change = np.abs(np.r_[T[:3, 3] - P[:3, 3], so3_log(T[:3, :3]) - so3_log(P[:3, :3])])
     assert change[3:].max() > np.radians(10)
-    assert np.all(change <= 4.0 * r.std), change / r.std
-    assert np.all(res[3].std < 0.25 * r.std)  # the frames before it were foreseen
+    assert np.all(r.std[3:] < 0.01 * change[3:].max()), np.degrees(r.std)

@@ -204,6 +204,11 @@ class PlaneCovarianceCalibration:
         seen = self._seen_variance()
         return seen is None or seen <= math.radians(PLANAR_SEEN_DEG) ** 2
 
+    @property
+    def departure_measured(self) -> bool:
+        """A re-anchor has measured how far the ground seen departs from the carried plane."""
+        return bool(self._seen_excess)
+
     def _seen_variance(self) -> float | None:
         """(rad^2) how far, per tilt angle, the ground seen departs from the carried planes
         (the median excess's trace shared by the two); None before any re-anchor measured it."""

@@ -195,7 +195,10 @@ class PlaneTracker:
         uncertain by the contradiction itself: the images and init.yaml disagreed by that
         much, one of them is that far off, and the tool cannot tell which."""
         P = self.consistency.reported(self.covariance)
-        extras = [e for e in (self._disputed_tilt, self._unconfirmed_tilt, self._spread_tilt)
+        # (the tilt frame 0's images did not confirm is the ground seen departing from the
+        # plane: once the re-anchors measure that departure, it is theirs, not counted twice)
+        unconfirmed = None if self.consistency.departure_measured else self._unconfirmed_tilt
+        extras = [e for e in (self._disputed_tilt, unconfirmed, self._spread_tilt)
                   if e is not None]
         if self._model_variance or extras:
             P = P.copy()
@@ -292,8 +295,8 @@ class PlaneTracker:
             return None
         chi2 = tilt_chi2(fit.measured, key.plane)
         if self._watching(key):  # the tilt is kept whatever they say
-            if chi2 >= UNCONFIRMED_CHI2 and self._unconfirmed_tilt is None:
-                self._unconfirmed(index, chi2)
+            if chi2 >= UNCONFIRMED_CHI2:
+                self._unconfirmed(index, chi2, fit.measured, key.plane)
             self._contradicted_later = chi2 >= CONSISTENT_CHI2
             if self._contradicted_later:
                 log.info("frame %d's images contradict init.yaml's ground tilt (chi-square "
@@ -316,7 +319,7 @@ class PlaneTracker:
                 self._record_initial_tilt(fit.measured, key.plane, chi2, index,
                                           not keep and (chi2 >= CONSISTENT_CHI2 or measure))
                 if exact and UNCONFIRMED_CHI2 <= chi2 < CONSISTENT_CHI2:
-                    self._unconfirmed(index, chi2)
+                    self._unconfirmed(index, chi2, fit.measured, key.plane)
         if keep:
             return None
         if chi2 < CONSISTENT_CHI2 and not measure:
@@ -342,13 +345,29 @@ class PlaneTracker:
                               gain=est.gain, bias=est.bias, first_level=options.predicted_top_level)
         return new_key, new, cov
 
-    def _unconfirmed(self, index: int, chi2: float) -> None:
-        """Frame ``index``'s images do not confirm frame 0's exact tilt (``chi2``): every
-        tilt carries the plane model's error from here (for reporting)."""
-        self._unconfirmed_tilt = np.eye(2) * math.radians(TILT_MODEL_ERROR_DEG) ** 2
-        log.info("frame %d's images do not confirm init.yaml's ground tilt (chi-square %.1f): "
-                 "the std columns carry a %.1f deg model error on it from here", index, chi2,
-                 TILT_MODEL_ERROR_DEG)
+    def _unconfirmed(self, index: int, chi2: float, measured: PlaneBelief | None = None,
+                     plane: Plane | None = None) -> None:
+        """Frame ``index``'s images do not confirm frame 0's exact tilt (``chi2``; ``measured``
+        the normal they give, against ``plane``): every tilt carries the plane model's error
+        from here (for reporting), as large as the measurement cannot exclude: per tilt the
+        measured difference and twice its std (the 95 % bound; a first frame's short
+        baseline measures a slope's 0.5 deg departure as 0.27 +- 0.12), the largest of the
+        frames asked so far; TILT_MODEL_ERROR_DEG on each tilt where nothing was measured.
+        (A fixed 0.5 deg made a 1024² Navcam drive's rotation std 100 times its error.)"""
+        got = None if measured is None or plane is None else measured_tilt(measured, plane)
+        if got is None:
+            error = np.eye(2) * math.radians(TILT_MODEL_ERROR_DEG) ** 2
+        else:
+            error = np.diag((np.abs(got[0]) + 2.0 * np.sqrt(np.clip(np.diag(got[1]), 0.0, None))) ** 2)
+        if self._unconfirmed_tilt is not None and \
+                np.trace(self._unconfirmed_tilt) >= np.trace(error):
+            return
+        first = self._unconfirmed_tilt is None
+        self._unconfirmed_tilt = error
+        if first:
+            log.info("frame %d's images do not confirm init.yaml's ground tilt (chi-square "
+                     "%.1f): the std columns carry a %.2f deg model error on it from here",
+                     index, chi2, math.degrees(math.sqrt(0.5 * np.trace(error))))
 
     def _confirmed(self, measured: PlaneBelief, plane: Plane) -> np.ndarray:
         """The covariance of a later keyframe's ``plane`` the images confirm (``measured``):
