@@ -180,6 +180,11 @@ class PlaneTracker:
         #: fits disagreed on its rotation this much (:meth:`anchored_captured`)
         self._spread_tilt: np.ndarray | None = None
         self.consistency = PlaneCovarianceCalibration()
+        #: (m^2) the keyframe distance's variance for reporting where it differs from the
+        #: filter's (:meth:`_reported_distance_variance`), and the next keyframe's, worked out
+        #: by :meth:`successor` for :meth:`anchored` (None: the filter's)
+        self._report_distance: float | None = None
+        self._next_report_distance: float | None = None
 
     @property
     def ground_planar(self) -> bool:
@@ -194,7 +199,13 @@ class PlaneTracker:
         from it by up to the bobbing's width in distance too, and every tilt from then on is
         uncertain by the contradiction itself: the images and init.yaml disagreed by that
         much, one of them is that far off, and the tool cannot tell which."""
-        P = self.consistency.reported(self.covariance)
+        cov = self.covariance
+        if self._report_distance is not None and cov[0, 0] > 0:  # (its correlations kept)
+            r = math.sqrt(self._report_distance / cov[0, 0])
+            cov = np.array(cov, dtype=float)
+            cov[0, :] *= r
+            cov[:, 0] *= r
+        P = self.consistency.reported(cov)
         # (the tilt frame 0's images did not confirm is the ground seen departing from the
         # plane: once the re-anchors measure that departure, it is theirs, not counted twice)
         unconfirmed = None if self.consistency.departure_measured else self._unconfirmed_tilt
@@ -257,6 +268,8 @@ class PlaneTracker:
         self._model_variance = 0.0
         self._spread_tilt = None
         self.covariance = self.mounting.covariance if covariance is None else covariance
+        self._report_distance = self._next_report_distance if covariance is not None else None
+        self._next_report_distance = None
 
     def anchored_captured(self, plane: Plane, rotations: list[np.ndarray]) -> None:
         """The keyframe just anchored (``plane`` in its camera) stands on a captured frame
@@ -464,4 +477,33 @@ class PlaneTracker:
         except (ValueError, np.linalg.LinAlgError):
             return key.plane.in_frame(cur_from_key), None, fit.gain, fit.bias, None
         self.consistency.reanchored(carried, belief, prior, distance_change, measured)
+        self._next_report_distance = self._reported_distance_variance(
+            J[0, 0], float(predicted[0, 0]), float(belief.covariance[0, 0]), distance_change)
         return belief.plane, belief.covariance, fit.gain, fit.bias, link
+
+    def _reported_distance_variance(self, j: float, predicted: float, posterior: float,
+                                    distance_change: float) -> float | None:
+        """(m^2) the next keyframe's distance variance for reporting, None: the filter's.
+
+        The filter carries the distance with DISTANCE_CHANGE_PLANAR of process noise per
+        keyframe where frame 0's images confirmed the tilt: a weight for the MAP (chosen by
+        ``benchmarks.held_out`` for accuracy), not an error. Where the re-anchors also find
+        the ground seen planar (:attr:`ground_planar`), the carried distance changes only as
+        the motion carries it, so the reported variance is that of the filter's estimate
+        with the carried distance's error as it is: the filter weighs the carried distance
+        (its variance ``predicted``, noise ``distance_change`` included) and the rest (the
+        prior, variance ``v`` with ``1 / posterior = 1 / predicted + 1 / v``) as ``w = posterior
+        / predicted`` and ``1 - w``; the carried one's error is the previous keyframe's
+        reported one carried (``j``: d carried / d previous) and the motion's share, so the
+        estimate's is ``w^2 carried + (1 - w)^2 v``. (With the noise counted as an error, a
+        512² flat drive's distance went into ty and tz as 7 times their error.)"""
+        if not (self.consistency.ground_planar and self.distance_change <= DISTANCE_CHANGE_PLANAR):
+            return None
+        if not (0.0 < posterior < predicted):
+            return None
+        previous = self.covariance[0, 0] if self._report_distance is None else self._report_distance
+        motion = max(predicted - distance_change ** 2 - j ** 2 * self.covariance[0, 0], 0.0)
+        carried = j ** 2 * previous + motion
+        w = posterior / predicted
+        rest = predicted * posterior / (predicted - posterior)
+        return w ** 2 * carried + (1.0 - w) ** 2 * rest
