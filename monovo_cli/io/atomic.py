@@ -105,11 +105,15 @@ class _HashingWriter:
         self.size += memoryview(data).nbytes
         return n
 
+    def flush(self) -> None:
+        self._f.flush()
+
 
 def atomic_write_with(path: Path, write: Callable[[IO[bytes]], object]) -> None:
     """Write ``path`` through a temporary file in the same directory + rename, the bytes
-    given by ``write(f)`` to a binary file-like ``f`` (only its ``write`` method: a pickler
-    streams into it without the whole file ever being one bytes object in memory).
+    given by ``write(f)`` to a binary file-like ``f`` (its ``write`` and ``flush`` methods
+    only, not seekable: a zip archive streams into it without the whole file ever being one
+    bytes object in memory).
 
     No half-written file ever carries the final name; the file gets the mode a plain
     ``open()`` would give it.

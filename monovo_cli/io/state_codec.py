@@ -1,33 +1,25 @@
 """Object graphs as data: numpy arrays plus a JSON tree, read back into registered classes only.
 
-:func:`encode` walks an object graph and returns a JSON-able tree and the arrays it holds;
-:func:`decode` rebuilds the graph from them. What the walk knows:
-
-* ``None``, ``bool``, ``int``, ``str`` and finite ``float`` as JSON values; a non-finite float
-  as ``["float", "nan" | "inf" | "-inf"]``;
-* numpy scalars ``["scalar", dtype, value]`` and arrays ``["array", id]`` (the array itself
-  goes to the arrays, named ``a<id>``), of the dtypes in :data:`DTYPES` only;
-* ``list``, ``tuple``, ``dict`` (any keys the walk knows, kept in order) and
-  ``collections.deque`` (with its ``maxlen``);
-* members of the :class:`Registry`'s enums ``["enum", name, value]``, and instances of its
-  classes ``["object", id, name, {field: value}]`` with exactly the fields it lists for the
-  class: a dataclass's fields, or the attributes given for a plain class. Values of
-  ``functools.cached_property`` attributes are not kept: they are worked out again from the
-  fields when first asked for.
-
+:func:`encode` walks an object graph into a JSON-able tree and the arrays it holds;
+:func:`decode` rebuilds the graph. The walk knows ``None``, ``bool``, ``int``, ``str`` and
+``float`` (non-finite ones as ``["float", "nan" | "inf" | "-inf"]``); numpy scalars and
+arrays of the dtypes in :data:`DTYPES` (an array goes to the arrays as ``a<id>``); ``list``,
+``tuple``, ``dict`` (any keys it knows) and ``collections.deque`` (with its ``maxlen``);
+members of the :class:`Registry`'s enums, and instances of its classes with exactly the
+fields it lists (a dataclass's fields, or the attributes given for a plain class; values of
+``functools.cached_property`` are left out and worked out again when first asked for).
 Anything else (a function, a ``functools.partial``, a path, a set) is refused when encoding
-(:class:`CodecError`), naming where in the graph it is.
+(:class:`CodecError`, naming where in the graph it is).
 
 Identity is kept: an object met again (an array, a container, a registered instance) is
-written ``["ref", id]``, so what was one object before is one object after, as code that
-compares with ``is`` relies on. Ids number those objects in the order the walk first meets
-them, so the tree of a decoded graph, encoded again, is the original tree.
+written ``["ref", id]``, so what was one object is one object after, as code that compares
+with ``is`` relies on. Ids number those objects in the order the walk first meets them: the
+tree of a decoded graph, encoded again, is the original tree.
 
-Decoding instantiates only the registry's classes, by their registered names
-(``object.__new__`` and the fields set into its ``__dict__``, as they were; no ``__init__``,
-no import of anything the data names), and checks every node: its shape, the class's fields
-exactly, the declared :class:`ArraySpec` of a field, every array's dtype against
-:data:`DTYPES`. Whatever does not fit raises :class:`CodecError`.
+Decoding creates only the registry's classes, by their registered names (``object.__new__``
+and the fields set into its ``__dict__``; no ``__init__``, no import of anything the data
+names), and checks every node: its form, the class's fields exactly, the declared
+:class:`ArraySpec` of a field, every array's dtype. Whatever does not fit is a CodecError.
 """
 
 from __future__ import annotations
@@ -66,11 +58,11 @@ class CodecError(ValueError):
 
 @dataclass(frozen=True)
 class ArraySpec:
-    """What a registered class's field holds: an array of a dtype ``kinds`` (numpy's
-    ``dtype.kind`` letters, e.g. ``"f"``) and ``shape`` (None: any length on that axis),
-    or None when ``optional``."""
+    """What a registered class's field holds: an array of ``dtype`` (numpy's ``dtype.str``,
+    e.g. ``"<f8"``) and ``shape`` (None: any length on that axis), or None when
+    ``optional``."""
 
-    kinds: str
+    dtype: str
     shape: tuple[int | None, ...]
     optional: bool = False
 
@@ -79,8 +71,8 @@ class ArraySpec:
             return
         if not isinstance(value, np.ndarray):
             raise CodecError(f"expected an array, found {type(value).__name__}")
-        if value.dtype.kind not in self.kinds:
-            raise CodecError(f"expected an array of kind {self.kinds!r}, found {value.dtype}")
+        if value.dtype.str != self.dtype:
+            raise CodecError(f"expected a {self.dtype} array, found {value.dtype.str}")
         if len(value.shape) != len(self.shape) or \
                 any(n is not None and n != m for n, m in zip(self.shape, value.shape)):
             raise CodecError(f"expected an array of shape {_shape_words(self.shape)}, "

@@ -42,7 +42,7 @@ class Box:
 
 def registry() -> Registry:
     types = Registry()
-    types.add(Point, arrays={"xy": ArraySpec("f", (2,))})
+    types.add(Point, arrays={"xy": ArraySpec("<f8", (2,))})
     types.add(Box, ("items", "mood", "recent"))
     types.add_enum(Mood)
     return types
@@ -175,7 +175,8 @@ def test_a_spoiled_tree_is_a_codec_error(spoil, words):
 
 @pytest.mark.parametrize("xy, words", [
     (np.array([1.0, 2.0, 3.0]), "expected an array of shape (2,), found (3,)"),
-    (np.array([1, 2]), "expected an array of kind 'f', found int64"),
+    (np.array([1, 2]), "expected a <f8 array, found <i8"),
+    (np.array([1, 2], np.float32), "expected a <f8 array, found <f4"),
     (np.array([[1.0, 2.0]]), "expected an array of shape (2,), found (1, 2)"),
     ("text", "expected an array, found str"),
 ])
@@ -210,4 +211,4 @@ def test_registering_twice_or_specs_of_missing_fields_is_an_error():
     with pytest.raises(ValueError, match="not a dataclass"):
         Registry().add(Box)
     with pytest.raises(ValueError, match="array specs of fields it has not"):
-        Registry().add(Point, arrays={"z": ArraySpec("f", ())})
+        Registry().add(Point, arrays={"z": ArraySpec("<f8", ())})
