@@ -187,8 +187,11 @@ def write_checkpoint(out_dir: Path, checkpoint: Checkpoint, types: Registry | No
     :func:`state_types` were not updated with the class)."""
     tree, arrays = encode(checkpoint, types or state_types())
     # streamed into the file: the state is tens of MB, and a bytes object of it at every
-    # checkpoint is what made a long run's peak memory grow (docs/benchmarks.md "Memory")
-    atomic_write_with(checkpoint_path(out_dir), lambda f: _write_npz(f, tree, arrays))
+    # checkpoint is what made a long run's peak memory grow (docs/benchmarks.md "Memory").
+    # Not hashed: no record lists the checkpoint (batch's done.json lists the results), and
+    # the SHA-256 of its tens of MB took a third of its writing time
+    atomic_write_with(checkpoint_path(out_dir), lambda f: _write_npz(f, tree, arrays),
+                      digest=False)
 
 
 def _write_npz(f: IO[bytes], tree: Any, arrays: dict[str, np.ndarray]) -> None:

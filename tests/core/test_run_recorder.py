@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import hashlib
 import zipfile
 from types import SimpleNamespace
 
@@ -58,10 +57,7 @@ def test_checkpoint_keeps_the_recorder_in_blocks_of_arrays(tmp_path):
     cp = Checkpoint(next_frame=len(rec), fingerprint={"seq": "x"}, state=rec, motion_bytes=123)
     with digests_recorded() as digests:
         write_checkpoint(tmp_path, cp)
-    path = tmp_path / ".track-checkpoint.npz"
-    (digest,) = digests.values()
-    data = path.read_bytes()
-    assert (digest.bytes, digest.sha256) == (len(data), hashlib.sha256(data).hexdigest())
+    assert digests == {}  # (no record lists the checkpoint: its bytes are not hashed)
     with zipfile.ZipFile(tmp_path / ".track-checkpoint.npz") as z:
         assert {i.compress_type for i in z.infolist()} == {zipfile.ZIP_STORED}
         assert len(z.infolist()) == 2 * 9 + 1  # two blocks of the columns, and the record
