@@ -109,7 +109,7 @@ from frame 0 again and replaces the rows kept), `--skip-bad-frames` alone with `
   so an interruption never separates a row from its pose.
 * **kill -9.** Nothing can run after SIGKILL, so: `motion.csv` only ever gets whole rows
   (one write per row, flushed); `trajectory.csv` / `.tum` and the run's checkpoint
-  (`.track-checkpoint.pkl`) are written every `--checkpoint-every` frames (default 100)
+  (`.track-checkpoint.npz`) are written every `--checkpoint-every` frames (default 100)
   and only ever to a temporary name (`.trajectory.csv.*.tmp`) and renamed, so a file
   under a final name is never half-written. The next run into the same directory
   removes such temporaries.
@@ -122,14 +122,19 @@ from frame 0 again and replaces the rows kept), `--skip-bad-frames` alone with `
   lengths of `motion.csv` and the covariance file when it was taken. The CSVs are cut back
   to those lengths (the rows written after the checkpoint are tracked again) and the run
   goes on, so its outputs are byte for byte an uninterrupted run's. This holds because
-  the state is all in the objects saved: numpy arrays round-trip exactly through a pickle,
-  the tracker keeps no module-level cache, OpenCV's RANSAC is seeded before every call
+  the state is all in the objects saved: numpy arrays round-trip exactly through the
+  checkpoint's `.npz`, objects shared in the state stay shared, the tracker keeps no
+  module-level cache, OpenCV's RANSAC is seeded before every call
   (`core/recovery/features.py`) and BLAS runs on one thread per frame
   (`pipeline/threads.py`). The checkpoint is written in the same signal-held commit as
   the frame's rows, after them, so it never counts a row that is not on disk; it is
   checked against the inputs' and options' fingerprint (as in `run.yaml`) and the
   monovo version, and a mismatch is refused in one line (exit 2) before anything is
-  touched. `motion.csv` and the covariance file are fsynced before each checkpoint is
+  touched. The checkpoint is data only (arrays and a JSON record, docs/guide.md "File
+  formats"; an earlier monovo's pickled `.track-checkpoint.pkl` is refused without being
+  opened), and a damaged or altered one is refused the same way (tests/io/test_fuzz.py
+  feeds its reader random and spoiled files, tests/cli/test_resume.py a pickle that would
+  run code). `motion.csv` and the covariance file are fsynced before each checkpoint is
   written (and the checkpoint itself before its rename), so after a power loss too they
   hold at least the bytes their checkpoint counts; a `motion.csv` shorter than that is
   refused, and `--overwrite` starts afresh.

@@ -219,8 +219,9 @@ class Odometry:
         ``image`` is None, else :meth:`step` (with ``prior_motion``). Returns its result and
         the keyframes it anchored or rebuilt in place, the rebuilt ones first.
 
-        The whole state lives in this object, so a copy of it (a pickle) taken between two
-        frames continues the sequence exactly as this one would.
+        The whole state lives in this object, so a copy of it taken between two frames
+        (the checkpoint's, :mod:`monovo_cli.io.checkpoint`) continues the sequence exactly as
+        this one would.
         """
         if not self._started:
             res = self.start(index, timestamp, image)

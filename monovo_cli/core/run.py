@@ -162,7 +162,7 @@ class RunRecorder:
 
     A frame's numbers go into columns allocated a block of frames at a time, not a kept
     object per frame: about 0.65 kB a frame, so a run's memory barely grows with its length
-    and a checkpoint pickles a few arrays.
+    and a checkpoint holds a few arrays.
     """
 
     def __init__(self) -> None:

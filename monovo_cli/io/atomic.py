@@ -1,8 +1,9 @@
 """Atomic file writes: a temporary file beside the target, fsync, rename; the umask's mode.
 
-Inside :func:`digests_recorded`, every file written here or through a
-:class:`DigestingStream` leaves its size and SHA-256 in the recorder, computed from the bytes
-as they are written, so a caller can fingerprint what it wrote without reading it back.
+Inside :func:`digests_recorded`, every file written here (but those written with
+``digest=False``) or through a :class:`DigestingStream` leaves its size and SHA-256 in the
+recorder, computed from the bytes as they are written, so a caller can fingerprint what it
+wrote without reading it back.
 """
 
 from __future__ import annotations
@@ -94,25 +95,33 @@ class DigestingStream:
 
 
 class _HashingWriter:
-    """A binary file that hashes what is written to it (for :func:`atomic_write_with`)."""
+    """A binary file that hashes what is written to it (for :func:`atomic_write_with`;
+    ``digest`` False: only counts it)."""
 
-    def __init__(self, f: IO[bytes]) -> None:
-        self._f, self.hash, self.size = f, hashlib.sha256(), 0
+    def __init__(self, f: IO[bytes], digest: bool = True) -> None:
+        self._f, self.hash, self.size = f, hashlib.sha256() if digest else None, 0
 
     def write(self, data) -> int:
-        self.hash.update(data)
+        if self.hash is not None:
+            self.hash.update(data)
         n = self._f.write(data)
         self.size += memoryview(data).nbytes
         return n
 
+    def flush(self) -> None:
+        self._f.flush()
 
-def atomic_write_with(path: Path, write: Callable[[IO[bytes]], object]) -> None:
+
+def atomic_write_with(path: Path, write: Callable[[IO[bytes]], object], *,
+                      digest: bool = True) -> None:
     """Write ``path`` through a temporary file in the same directory + rename, the bytes
-    given by ``write(f)`` to a binary file-like ``f`` (only its ``write`` method: a pickler
-    streams into it without the whole file ever being one bytes object in memory).
+    given by ``write(f)`` to a binary file-like ``f`` (its ``write`` and ``flush`` methods
+    only, not seekable: a zip archive streams into it without the whole file ever being one
+    bytes object in memory).
 
     No half-written file ever carries the final name; the file gets the mode a plain
-    ``open()`` would give it.
+    ``open()`` would give it. ``digest`` False: the bytes are not hashed and the file is not
+    recorded (:func:`digests_recorded`), for a file no record lists (the checkpoint).
     """
     path = Path(path)
     try:
@@ -122,12 +131,13 @@ def atomic_write_with(path: Path, write: Callable[[IO[bytes]], object]) -> None:
         raise OutputError(f"{path.parent}: cannot write here ({exc.strerror})") from None
     try:
         with os.fdopen(fd, "wb") as f:
-            out = _HashingWriter(f)
+            out = _HashingWriter(f, digest)
             write(out)
             f.flush()
             os.fsync(f.fileno())
         os.replace(tmp, path)
-        _record(path, out.size, out.hash.hexdigest())
+        if out.hash is not None:
+            _record(path, out.size, out.hash.hexdigest())
     except BaseException:
         try:
             os.unlink(tmp)

@@ -55,7 +55,15 @@ from monovo_cli.pipeline.preflight import (
 from monovo_cli.pipeline.products import sequence_name, write_terrain, write_trajectory_plot
 from monovo_cli.pipeline.report import THUMBNAIL_SIDE, THUMBNAILS, write_report
 from monovo_cli.pipeline.threads import one_blas_thread
-from monovo_cli.pipeline.tracking import Tracking, naming, open_sequence, read_mask, read_prior
+from monovo_cli.pipeline.tracking import (
+    Tracking,
+    TrackingState,
+    naming,
+    open_sequence,
+    read_mask,
+    read_prior,
+    state_types,
+)
 
 log = logging.getLogger(__name__)
 
@@ -248,9 +256,10 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
         write_checkpoint(Path(out_dir), Checkpoint(
             tracking.done, fingerprint, tracking.state(), stream.size,
             cov_stream.size if cov_stream is not None else None,
-            time.perf_counter() - t0))
+            time.perf_counter() - t0), types)
 
     run: TrackRun | None = None
+    types = state_types()
     cov_writer = cov_stream = None
     t0 = time.perf_counter() - (saved.seconds if saved is not None else 0.0)
     try:
@@ -333,7 +342,7 @@ def _fingerprint(record: dict) -> dict:
 def _resume_point(out_dir: Path, fingerprint: dict) -> Checkpoint | None:
     """``out_dir``'s checkpoint if it was taken with ``fingerprint`` (None: there is none);
     an InputError naming the first setting or input that differs otherwise."""
-    saved = read_checkpoint(out_dir)
+    saved = read_checkpoint(out_dir, state_types(), TrackingState)
     if saved is not None and saved.fingerprint != fingerprint:
         what = _first_difference(saved.fingerprint, fingerprint) or "the record"
         raise InputError(f"{out_dir}: its run was made with other inputs or options ({what} "

@@ -33,8 +33,10 @@ from monovo_cli.core.run import RunRecorder, TrackRun
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.errors import InputError, TrackingError
 from monovo_cli.geometry.plane import Plane, pitch_roll_deg
+from monovo_cli.io.checkpoint import state_types as checkpoint_types
 from monovo_cli.io.config import InitConfig, check_frame_size, load_init
 from monovo_cli.io.sources import Frame, FrameSource, find_init_yaml, open_frames, resolve_sequence
+from monovo_cli.io.state_codec import ArraySpec, Registry
 from monovo_cli.mapping.gaps import close_gaps
 from monovo_cli.mapping.smoothing import SmoothedDrive, smooth_drive
 from monovo_cli.mapping.terrain_map import TerrainMap
@@ -110,6 +112,14 @@ class TrackingState:
     last_image: np.ndarray | None
     last_index: int = -1
     thumbnails: tuple = ({}, 1, 0, -1)
+
+
+def state_types() -> Registry:
+    """The classes of a :class:`TrackingState`, for its checkpoint
+    (:func:`monovo_cli.io.checkpoint.state_types` and :class:`TrackingState` itself)."""
+    types = checkpoint_types()
+    types.add(TrackingState, arrays={"last_image": ArraySpec("<f4", (None, None), optional=True)})
+    return types
 
 
 class Tracking:
@@ -225,7 +235,8 @@ class Tracking:
         """Everything this run holds between two frames, after the frames recorded so far:
         :meth:`restore` on a new Tracking of the same sequence and settings continues it
         exactly. Take it after :meth:`record` of the last frame yielded (the objects are
-        shared, not copied: pickle it before the next frame)."""
+        shared, not copied: write it, :mod:`monovo_cli.io.checkpoint`, before the next
+        frame; :func:`state_types` lists its classes)."""
         if self._next != self.done:
             raise ValueError(f"state: {self._next} frames tracked but {self.done} recorded")
         return TrackingState(self._next, self._odometry, self._recorder, self.terrain,

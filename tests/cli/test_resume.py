@@ -22,7 +22,7 @@ import pytest
 from click.testing import CliRunner
 
 from monovo_cli.cli import main
-from monovo_cli.io.checkpoint import CHECKPOINT_FILE
+from monovo_cli.io.checkpoint import CHECKPOINT_FILE, OLD_CHECKPOINT_FILE
 
 pytestmark = pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
 
@@ -202,6 +202,55 @@ def test_a_damaged_checkpoint_is_one_line(seq, tmp_path):
                 "--resume")
     assert r.exit_code == 2 and "not a readable checkpoint" in r.output, r.output
     assert r.output.count("\n") == 1
+
+
+class _Payload:
+    """Unpickled, it creates the file ``marker``: what a crafted checkpoint could do."""
+
+    def __init__(self, marker: Path) -> None:
+        self.marker = marker
+
+    def __reduce__(self):
+        return (Path.touch, (self.marker,))
+
+
+@pytest.mark.parametrize("name", [CHECKPOINT_FILE, OLD_CHECKPOINT_FILE])
+def test_a_pickle_in_place_of_the_checkpoint_runs_nothing(seq, tmp_path, name):
+    """A pickle that would run code when loaded, under the checkpoint's name or the one
+    monovo's pickled checkpoints had: --resume refuses it in one line (exit 2), the code
+    never runs and the outputs stay as they were."""
+    import pickle
+
+    out, marker = tmp_path / "out", tmp_path / "ran"
+    _interrupted(seq, out)
+    (out / CHECKPOINT_FILE).unlink()
+    payload = pickle.dumps({"format": "monovo-checkpoint-5", "checkpoint": _Payload(marker)})
+    pickle.loads(payload)  # (the payload works: it creates the marker)
+    assert marker.is_file()
+    marker.unlink()
+    (out / name).write_bytes(payload)
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    r = _invoke(str(seq), "-o", str(out), "--covariance", str(out / "covariance.csv"),
+                "--resume")
+    assert r.exit_code == 2, r.output
+    assert r.output.count("\n") == 1 and "Traceback" not in r.output, r.output
+    assert not marker.exists(), "the checkpoint's code ran"
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    if name == OLD_CHECKPOINT_FILE:
+        assert r.output == (f"Error: {out / OLD_CHECKPOINT_FILE}: the checkpoint of an earlier "
+                            "monovo, a pickle, which this one never loads (loading one can run "
+                            "code); start the run afresh: use --overwrite or another -o\n")
+    else:
+        assert "not a readable checkpoint (not an .npz archive)" in r.output, r.output
+
+
+def test_an_earlier_monovo_s_checkpoint_gives_way_to_overwrite(seq, tmp_path):
+    out = tmp_path / "out"
+    _interrupted(seq, out)
+    (out / CHECKPOINT_FILE).rename(out / OLD_CHECKPOINT_FILE)
+    r = _invoke(str(seq), "-o", str(out), "--overwrite")
+    assert r.exit_code == 0, r.output
+    assert not (out / OLD_CHECKPOINT_FILE).exists() and (out / "trajectory.csv").is_file()
 
 
 def test_resume_of_a_finished_mostly_lost_run_exits_as_it_did(seq, tmp_path):

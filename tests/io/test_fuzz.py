@@ -1,4 +1,5 @@
-"""Fuzzing the readers of monovo's own files: TUM, motion.csv, trajectory.csv, model.npz.
+"""Fuzzing the readers of monovo's own files: TUM, motion.csv, trajectory.csv, model.npz,
+the track checkpoint.
 
 Property: whatever the bytes, a reader either returns finite, well-formed data or raises
 an :class:`~monovo_cli.errors.InputError` whose message is one line naming the file;
@@ -17,6 +18,7 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from monovo_cli.errors import InputError, MonovoError
+from monovo_cli.io.checkpoint import CHECKPOINT_FILE, Checkpoint, read_checkpoint
 from monovo_cli.io.formats import (
     MOTION_COLUMNS,
     STD_COLUMNS,
@@ -257,3 +259,164 @@ def test_huge_quaternion_components_do_not_overflow(scratch):
 
 def test_monovo_error_is_the_root():
     assert issubclass(InputError, MonovoError)
+
+
+# ----------------------------------------------------------------------------- the checkpoint
+
+
+@pytest.fixture(scope="module")
+def checkpoint_bytes(synth_drive, tmp_path_factory) -> bytes:
+    """The checkpoint of a 2-frame 64x64 drive tracked with its terrain map and thumbnails."""
+    from monovo_cli.core.options import TrackOptions
+    from monovo_cli.io.checkpoint import write_checkpoint
+    from monovo_cli.pipeline.tracking import Tracking, open_sequence, state_types
+
+    seq = synth_drive(preset="drive", frames=2, size=(64, 64), seed=2)
+    tracking = Tracking(open_sequence(seq), TrackOptions(max_points=300), terrain=True,
+                        thumbnails=2, thumbnail_side=16)
+    for _ in tracking:
+        pass
+    root = tmp_path_factory.mktemp("checkpoint")
+    write_checkpoint(root, Checkpoint(2, {"inputs": [1, "x"]}, tracking.state(), 100, None, 0.5),
+                     state_types())
+    return _Blob((root / CHECKPOINT_FILE).read_bytes())
+
+
+def _members(data: bytes) -> dict[str, bytes]:
+    import io
+    import zipfile
+
+    with zipfile.ZipFile(io.BytesIO(data)) as z:
+        return {name: z.read(name) for name in z.namelist()}
+
+
+def _zipped(members: dict[str, bytes]) -> bytes:
+    import io
+    import zipfile
+
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_STORED) as z:
+        for name, data in members.items():
+            z.writestr(name, data)
+    return buf.getvalue()
+
+
+def _npy(a: np.ndarray) -> bytes:
+    import io
+
+    buf = io.BytesIO()
+    np.save(buf, a, allow_pickle=False)
+    return buf.getvalue()
+
+
+def _loaded(data: bytes) -> np.ndarray:
+    import io
+
+    return np.load(io.BytesIO(data), allow_pickle=False)
+
+
+_json_leaf = st.one_of(st.none(), st.booleans(), st.integers(-3, 300), st.integers(),
+                       st.floats(allow_nan=False, allow_infinity=False), st.text(max_size=8),
+                       st.sampled_from(["ok", "lost", "<f8", "|O", "a0", "FrameStatus",
+                                        "Odometry", "Plane", "os.system", "nan", "-inf"]))
+_json_node = st.recursive(
+    _json_leaf,
+    lambda inner: st.one_of(
+        st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=6), inner, max_size=3),
+        st.tuples(st.sampled_from(["ref", "array", "float", "list", "tuple", "deque", "dict",
+                                   "object", "enum", "scalar", "exec"]),
+                  st.lists(inner, max_size=4)).map(lambda t: [t[0], *t[1]])),
+    max_leaves=8)
+
+
+def _places(node, out: list) -> list:
+    """Every (container, key) of a JSON tree."""
+    if isinstance(node, list):
+        for i, x in enumerate(node):
+            out.append((node, i))
+            _places(x, out)
+    elif isinstance(node, dict):
+        for k, x in node.items():
+            out.append((node, k))
+            _places(x, out)
+    return out
+
+
+@st.composite
+def _spoiled_checkpoint(draw, original: bytes) -> bytes:
+    """The checkpoint re-zipped intact (zip's own checksums right) after one change inside:
+    two arrays swapped, an array of another dtype or shape (the record's table told or not),
+    a member dropped or cut short, or any node of the record's JSON replaced by other JSON."""
+    import json
+    import zipfile
+
+    members = _members(original)
+    names = sorted(n for n in members if n != "checkpoint.npy")
+    record = json.loads(_loaded(members["checkpoint.npy"]).tobytes())
+    how = draw(st.sampled_from(["swap", "dtype", "dtype", "drop", "cut", "record", "record",
+                                "record", "record"]))
+    if how == "swap":
+        a, b = draw(st.lists(st.sampled_from(names), min_size=2, max_size=2, unique=True))
+        members[a], members[b] = members[b], members[a]
+    elif how == "dtype":
+        name = draw(st.sampled_from(names))
+        a = _loaded(members[name])
+        dtype = draw(st.sampled_from(["<f4", "<f8", "<i8", "|b1", "|u1", "<c8", ">f8", "<U2"]))
+        if draw(st.booleans()) and a.size:
+            a = a.reshape(-1)[: draw(st.integers(0, a.size - 1))]
+        members[name] = _npy(a.astype(dtype))
+        if draw(st.booleans()):  # the table agrees with the member: the spec must catch it
+            b = _loaded(members[name])
+            record["arrays"][name[:-4]] = [b.dtype.str, list(b.shape),
+                                           zipfile.crc32(members[name])]
+    elif how == "drop":
+        del members[draw(st.sampled_from(sorted(members)))]
+    elif how == "cut":
+        name = draw(st.sampled_from(sorted(members)))
+        members[name] = members[name][: draw(st.integers(0, len(members[name]) - 1))]
+    else:
+        places = _places(record, [])
+        container, key = places[draw(st.integers(0, len(places) - 1))]
+        container[key] = draw(_json_node)
+    if how in ("dtype", "record"):  # (the record changed)
+        text = json.dumps(record).encode("utf-8")
+        members["checkpoint.npy"] = _npy(np.frombuffer(text, np.uint8))
+    return _Blob(_zipped(members))
+
+
+def _read_checkpoint(path: Path):
+    from monovo_cli.pipeline.tracking import TrackingState, state_types
+
+    return read_checkpoint(path.parent, state_types(), TrackingState)
+
+
+def _check_checkpoint(result) -> None:
+    from monovo_cli.pipeline.tracking import TrackingState
+
+    if result is not _REJECTED:
+        assert isinstance(result, Checkpoint) and isinstance(result.state, TrackingState)
+
+
+@FUZZ
+@given(data=st.data())
+def test_fuzz_read_checkpoint_bytes(scratch, checkpoint_bytes, data):
+    """Random bytes, truncations, flipped, spliced and zeroed bytes."""
+    blob = data.draw(st.one_of(_damaged(checkpoint_bytes), st.binary(max_size=200),
+                               st.binary(max_size=60).map(lambda b: b"PK\x03\x04" + b)))
+    _check_checkpoint(_read(scratch, CHECKPOINT_FILE, blob, _read_checkpoint))
+
+
+@FUZZ
+@given(data=st.data())
+def test_fuzz_read_checkpoint_inside(scratch, checkpoint_bytes, data):
+    """Valid zips holding swapped arrays, wrong dtypes and shapes, missing or short members,
+    and records whose JSON was changed anywhere."""
+    blob = data.draw(_spoiled_checkpoint(checkpoint_bytes))
+    _check_checkpoint(_read(scratch, CHECKPOINT_FILE, blob, _read_checkpoint))
+
+
+def test_an_intact_checkpoint_reads(scratch, checkpoint_bytes):
+    back = _read_checkpoint(_write(scratch, CHECKPOINT_FILE, checkpoint_bytes))
+    assert back.next_frame == 2 and back.fingerprint == {"inputs": [1, "x"]}
+    again = _read_checkpoint(_write(scratch, CHECKPOINT_FILE, _zipped(_members(checkpoint_bytes))))
+    assert again.next_frame == 2
