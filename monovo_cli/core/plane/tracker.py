@@ -506,4 +506,4 @@ class PlaneTracker:
         carried = j ** 2 * previous + motion
         w = posterior / predicted
         rest = predicted * posterior / (predicted - posterior)
-        return w ** 2 * carried + (1.0 - w) ** 2 * rest
+        return float(w ** 2 * carried + (1.0 - w) ** 2 * rest)
