@@ -312,7 +312,7 @@ def build_shelf_tags(snap: Snapshot, out: Path) -> Built:
     # shelf's floor (y = 26.6 cm), whose normal points down in the image.
     floor = np.isclose(pw[:, 1], SHELF_FLOOR_Y_M)
     plane = plane_from_world(poses_cw[0], (0.0, 1.0, 0.0), SHELF_FLOOR_Y_M)
-    region = region_of_points(uv[0][floor], cam.width, cam.height, margin=0.35)
+    region = region_of_points(uv[0][floor], cam.width, cam.height, margin=0.3)
     size = write_sequence(out, snap, names, cam, traj, plane, region)
     rms = pnp_rms(pw, uv, K, poses_cw)
     return Built("shelf_tags", len(names), size, path_length(traj), snap.commit(),
@@ -390,7 +390,7 @@ SOURCES: tuple[Source, ...] = (
            "corners of `detected_corners.txt` against `p_W_corners.txt` (cm, converted to m) "
            "for every frame. Plane: the shelf's floor, world y = 26.6 cm (the four corners "
            "on it; the other eight lie on a side wall, z = 0, and the back wall), in frame 0. "
-           "Region: the floor corners' bounding box in frame 0, grown by 35 % "
+           "Region: the floor corners' bounding box in frame 0, grown by 30 % "
            "of its size each side. Hard: a small floor (the back wall and shelf sides fill much "
            "of the image), white, textureless board around the tags, a dark background beside "
            "the shelf, motion blur; the ground truth is only as good as 12 corners' PnP."),
