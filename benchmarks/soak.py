@@ -88,7 +88,6 @@ from __future__ import annotations
 
 import argparse
 import csv
-import datetime
 import math
 import os
 import shutil
@@ -717,7 +716,7 @@ def write_docs(command: str, text: str) -> None:
         BEGIN,
         f"## The scenario soak (issue 40) (`{command}`)",
         "",
-        f"Commit {commit}; machine: {machine()}; {datetime.date.today().isoformat()}.",
+        f"Commit {commit}; machine (and date): {machine()}.",
         "The box, the classes and the invariants are benchmarks/soak.py's docstring; every "
         "failing scenario's replay command is printed by the run.",
         "",
