@@ -694,6 +694,8 @@ def table(results: list[dict]) -> str:
 
 
 def failure_lines(results: list[dict]) -> list[str]:
+    """Each failing scenario: its class, seed, index, invariants and replay command, what
+    was drawn and what went wrong (the first eight rows)."""
     lines = []
     for r in results:
         sc, v = r["scenario"], r["verdict"]
@@ -763,7 +765,7 @@ def main(argv: list[str] | None = None) -> int:
             results.append(soak_one(job))
             _progress(results[-1], len(results), len(jobs), start)
     lines = failure_lines(results)
-    print("\n".join(lines) if lines else "No scenario failed.")
+    print("\nAll failures, in index order:\n" + ("\n".join(lines) if lines else "No scenario failed."))
     render_s = sum(r["render_s"] for r in results)
     track_s = sum(r["track_s"] for r in results)
     text = (table(results) + "\n\n"
@@ -780,7 +782,11 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _progress(r: dict, done: int, total: int, start: float) -> None:
+    """One line on stderr per scenario; a failure's lines at once on stdout too (a long run
+    that is stopped keeps them), and again, all together, before the table."""
     sc, v = r["scenario"], r["verdict"]
+    if v.failures:
+        print("\n".join(failure_lines([r])), flush=True)
     print(f"[{done}/{total} {time.perf_counter() - start:.0f} s] index {sc.index} {sc.klass}: "
           f"{'FAIL ' + ','.join(v.failures) if v.failures else 'ok'} "
           f"(render {r['render_s']:.1f} s, track {r['track_s']:.1f} s)", file=sys.stderr, flush=True)

@@ -82,3 +82,27 @@ def test_scenario_holds_the_invariants(index, tmp_path):
     verdict = judge(sc, seq, out, r.exit_code, r.output)
     assert not verdict.failures, (f"{sc.klass}: {', '.join(verdict.failures)}\n  {sc.describe()}\n  "
                                   + "\n  ".join(verdict.details) + f"\n  replay: {sc.replay()}")
+
+
+# Scenarios of the full box (``python -m benchmarks.soak --seed S --only INDEX``) that showed
+# a defect the issue names, kept as regression tests: (seed, index) -> the defect.
+FOUND: dict[tuple[int, int], str] = {
+    (40, 13): "internal error (exit 1): IndexError in step -> _resolve_gap -> "
+              "estimate_motion(ref.levels, pyr, ...), pyramid[lv] past the frame's pyramid, "
+              "at frame 9 after three lost frames (192 px, wheels climbing rocks, zigzag "
+              "0.68 m steps)",
+}
+
+
+@pytest.mark.parametrize("seed, index", [
+    pytest.param(s, i, id=f"seed{s}-{i}", marks=pytest.mark.xfail(strict=True, reason=why))
+    for (s, i), why in FOUND.items()])
+def test_soak_finding_holds_the_invariants(seed, index, tmp_path):
+    sc = draw(seed, index)
+    seq, out = tmp_path / "seq", tmp_path / "out"
+    render(sc, seq)
+    r = CliRunner().invoke(main, track_command(seq, out, 1))
+    verdict = judge(sc, seq, out, r.exit_code, r.output)
+    assert not verdict.failures, (f"{sc.klass}: {', '.join(verdict.failures)}\n  {sc.describe()}\n  "
+                                  + "\n  ".join(verdict.details) + f"\n  replay: {sc.replay()}")
+
