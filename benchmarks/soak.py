@@ -31,7 +31,9 @@ The box (each parameter drawn per scenario):
   mount), and in 12 % of the scenarios a jerking camera (independent pitch and roll of
   1-4 deg std per frame, half of that in yaw);
 * ground: flat (40 %), rolling, slope or a rock field (monovo_cli.synth.terrain, rendered by
-  ray casting); the rover straddles the rocks (its body on the plane under its wheels over
+  ray casting; synth's ray caster marches rays that graze the ground for kilometres, so over
+  terrain the pitch is raised in 5 deg steps until the horizon of the mean ground stays
+  HORIZON_DEG above every frame, recorded in synth.yaml as ``pitch_deg_rendered``); the rover straddles the rocks (its body on the plane under its wheels over
   the base ground) or, in 30 % of the rock fields, climbs them (the wheels on the rocks: the
   camera jerks when a wheel meets one);
 * texture: synth's procedural one, gravel, a low texture (the procedural one blurred by 3-8
@@ -133,6 +135,7 @@ MSD_FACTOR = 10.0
 DRIFT_FLOOR = 0.01  # camera heights
 THREAD_EVERY = 10
 CAPTURE = 0.5  # camera heights per frame: MER's 0.75 m at 1.5 m
+HORIZON_DEG = 3.0  # over terrain, every frame's border dips at least this below the mean ground
 CLASSES = ("flat", "terrain", "photometric", "large-motion", "beyond")
 DRIFT_PCT = {"flat": 2.0, "terrain": 5.0, "photometric": 10.0, "large-motion": 10.0, "beyond": 10.0}
 SIZES = (128, 160, 192, 224, 256, 320, 384, 512, 768, 1024)
@@ -423,6 +426,22 @@ def _shadow_mask(sc: Scenario, k: int) -> np.ndarray:
     return (1.0 - dark * inside).astype(np.float32)
 
 
+def _horizon_clearance(cam, poses: list[np.ndarray], gradient: tuple[float, float]) -> float:
+    """The smallest angle (deg) by which rays through the border of any frame dip below the
+    plane of slope ``gradient`` (the terrain's mean ground): negative when the horizon shows."""
+    n = np.array([-gradient[0], -gradient[1], 1.0])
+    n /= np.linalg.norm(n)
+    t = np.linspace(0.0, 1.0, 6)
+    u, v = -0.5 + t * cam.width, -0.5 + t * cam.height  # along the top/bottom, left/right
+    left, right, top, bottom = -0.5, cam.width - 0.5, -0.5, cam.height - 0.5
+    xs = np.r_[u, u, np.full(6, left), np.full(6, right)]
+    ys = np.r_[np.full(6, top), np.full(6, bottom), v, v]
+    rays = np.column_stack([(xs - cam.cx) / cam.fx, (ys - cam.cy) / cam.fy, np.ones(len(xs))])
+    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    worst = min(float(np.min(-(g[:3, :3] @ rays.T).T @ n)) for g in poses)
+    return math.degrees(math.asin(max(-1.0, min(1.0, worst))))
+
+
 def _corrupt_bytes(png: bytes, kind: str, rng: np.random.Generator) -> bytes:
     if kind == "truncated":
         return png[:max(8, int(len(png) * rng.uniform(0.05, 0.9)))]
@@ -462,13 +481,22 @@ def render(sc: Scenario, seq: Path) -> None:
         g_from_body = body_on_ground(path, terrain.height if sc.climb else terrain.base_height)
         renderer = TerrainRenderer(cam, tex, terrain,
                                    sun_azimuth=float(terrain_rng.uniform(0, 2 * math.pi)))
-    poses = []
-    for k in range(n):
-        jerk = np.eye(4)
-        if sc.jerk_deg > 0:
-            j = np.radians(sc.jerk_deg) * jerk_rng.standard_normal(3) * np.array([1.0, 1.0, 0.5])
-            jerk = make_pose(so3_exp(j), np.zeros(3))
-        poses.append(g_from_body[k] @ bobbed_mount(bob[k], mount) @ jerk)
+    jerks = [np.eye(4)] * n
+    if sc.jerk_deg > 0:
+        j = np.radians(sc.jerk_deg) * jerk_rng.standard_normal((n, 3)) * np.array([1.0, 1.0, 0.5])
+        jerks = [make_pose(so3_exp(v), np.zeros(3)) for v in j]
+
+    def poses_at(m: np.ndarray) -> list[np.ndarray]:
+        return [g_from_body[k] @ bobbed_mount(bob[k], m) @ jerks[k] for k in range(n)]
+
+    poses, pitch = poses_at(mount), sc.pitch_deg
+    if terrain is not None:  # the ray caster marches grazing rays for kilometres: keep the
+        # horizon of the terrain's mean plane out of every frame (a deterministic re-aim)
+        while pitch < 90.0 and _horizon_clearance(cam, poses, terrain.gradient) < HORIZON_DEG:
+            pitch = min(pitch + 5.0, 90.0)
+            mount = camera_mount(pitch, sc.cam_height, forward=sc.forward)
+            poses = poses_at(mount)
+        region = ground_region(cam, mount)
 
     frames_dir = seq / "frames"
     frames_dir.mkdir(parents=True, exist_ok=True)
@@ -493,7 +521,8 @@ def render(sc: Scenario, seq: Path) -> None:
         plane_pose = mount
     else:  # frame 0's ground: the plane under its wheels, seen from camera 0
         plane_pose = se3_inv(g_from_body[0]) @ poses[0]
-    params = {"generator": "benchmarks.soak", "class": sc.klass, **_plain(asdict(sc))}
+    params = {"generator": "benchmarks.soak", "class": sc.klass, **_plain(asdict(sc)),
+              "pitch_deg_rendered": float(pitch)}
     write_sequence(seq, cam, [poses[k] for k in present], region, params, None,
                    plane_pose=plane_pose, nominal=sc.nominal)
 
