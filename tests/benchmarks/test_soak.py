@@ -1,0 +1,117 @@
+"""The scenario soak's CI slice (issue 40): small scenarios drawn by benchmarks.soak's
+generator with fixed seeds, each tracked and held to the soak's invariants.
+
+``draw(SEED, index, tiny=True)`` (the first PER_CLASS of each class): 96-160 px, 8-15 frames, otherwise the soak's whole box
+(terrain, turns, jerks, textures, lighting, blank, corrupt and dropped frames). monovo runs
+in-process through click's CliRunner with the soak's arguments: the exit status is the one
+the command line returns (an internal error is exit 1 there too). A failing scenario replays
+with ``python -m benchmarks.soak --seed 40 --tiny --only INDEX --keep /tmp/x``.
+
+Scenarios that fail today on a tracker defect are marked ``xfail(strict=True)`` with the
+defect named, so that the fix shows as an XPASS to be unmarked; the invariants themselves
+are never loosened here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+from click.testing import CliRunner
+
+from benchmarks.soak import CLASSES, draw, judge, render, track_command
+from monovo_cli.cli import main
+
+SEED = 40
+PER_CLASS = 7
+
+
+def _stratified(per_class: int) -> list[int]:
+    """The first ``per_class`` tiny scenarios of each class, in index order."""
+    picked: dict[str, list[int]] = {c: [] for c in CLASSES}
+    index = 0
+    while any(len(v) < per_class for v in picked.values()):
+        k = draw(SEED, index, tiny=True).klass
+        if len(picked[k]) < per_class:
+            picked[k].append(index)
+        index += 1
+    return sorted(i for v in picked.values() for i in v)
+
+
+INDICES = _stratified(PER_CLASS)
+# index -> the defect that makes it fail today (see the module docstring)
+KNOWN: dict[int, str] = {
+    6: "drift: two turns in place of ~22 deg/frame (45 deg field of view, 144 px) are lost and "
+       "the re-initialisation after them leaves 0.21 m of end error on a 1.3 m arc (16 % > 10 %)",
+    9: "untrusted lost rows: steps of 1.7 m (past the capture range) are lost with a prediction "
+       "whose std (0.34 m) does not cover its 1.5-1.7 m error (4.6-5.1 std)",
+    14: "untrusted ok rows: on low texture over rocks (96 px, noise 30) tracking converges to "
+        "motions 5-165 deg off, written ok/reanchored with stds 4-24 times too small and an msd "
+        "within the drive's level",
+    32: "drift: two frames lost under a moving shadow (no better than chance) and the "
+        "re-initialisation after them leave 3.6 cm of end error on a 14 cm path (25 % > 10 %)",
+}
+
+
+def _case(index: int):
+    sc = draw(SEED, index, tiny=True)
+    marks = [pytest.mark.xfail(strict=True, reason=KNOWN[index])] if index in KNOWN else []
+    return pytest.param(index, id=f"{index:02d}-{sc.klass}", marks=marks)
+
+
+def test_the_slice_is_wide():
+    """The slice covers every class and the box's damage kinds (not only easy drives)."""
+    scenarios = [draw(SEED, i, tiny=True) for i in INDICES]
+    assert len(scenarios) >= 30
+    assert {s.klass for s in scenarios} == set(CLASSES)
+    assert any(s.ground == "rocks" for s in scenarios) and any(s.dropped for s in scenarios)
+    assert any(s.corrupt for s in scenarios) and any(s.blank for s in scenarios)
+    assert all(96 <= min(s.width, s.height) and max(s.width, s.height) <= 160 and 8 <= s.frames <= 15
+               for s in scenarios)
+
+
+def test_a_scenario_is_replayed_exactly():
+    assert draw(SEED, 7, tiny=True) == draw(SEED, 7, tiny=True)
+    assert draw(SEED, 7, tiny=True) != draw(SEED, 8, tiny=True)
+
+
+@pytest.mark.parametrize("index", [_case(i) for i in INDICES])
+def test_scenario_holds_the_invariants(index, tmp_path):
+    sc = draw(SEED, index, tiny=True)
+    seq, out = tmp_path / "seq", tmp_path / "out"
+    render(sc, seq)
+    r = CliRunner().invoke(main, track_command(seq, out, 1))
+    verdict = judge(sc, seq, out, r.exit_code, r.output)
+    assert not verdict.failures, (f"{sc.klass}: {', '.join(verdict.failures)}\n  {sc.describe()}\n  "
+                                  + "\n  ".join(verdict.details) + f"\n  replay: {sc.replay()}")
+
+
+# Scenarios of the full box that showed a defect the issue names, kept as regression tests
+# with every drawn value spelled out (the box may change; these stay), and the defect.
+IGNITION = replace(draw(40, 13), frames=22, blank=(14,), corrupt=((10, "empty"),))
+FOUND = [
+    (IGNITION,
+     "internal error (exit 1): IndexError in step -> _resolve_gap -> "
+     "estimate_motion(ref.levels, pyr, ...), pyramid[lv] past the frame's pyramid, at frame 9 "
+     "after three lost frames (192 px, wheels climbing rocks, zigzagging 0.68 m steps)"),
+]
+
+
+def test_the_found_scenarios_are_the_ones_that_failed():
+    """The crash scenario as the soak drew it at 29e2d18 (seed 40, index 13, 22 frames)."""
+    sc = FOUND[0][0]
+    assert (sc.width, sc.frames, sc.mode, sc.ground, sc.climb, sc.texture) == (
+        192, 22, "zigzag", "rocks", True, "gravel")
+    assert round(sc.step * sc.cam_height, 2) == 0.68 and sc.blank == (14,)
+
+
+@pytest.mark.parametrize("sc", [
+    pytest.param(sc, id=f"seed{sc.seed}-{sc.index}", marks=pytest.mark.xfail(strict=True, reason=why))
+    for sc, why in FOUND])
+def test_soak_finding_holds_the_invariants(sc, tmp_path):
+    seq, out = tmp_path / "seq", tmp_path / "out"
+    render(sc, seq)
+    r = CliRunner().invoke(main, track_command(seq, out, 1))
+    verdict = judge(sc, seq, out, r.exit_code, r.output)
+    assert not verdict.failures, (f"{sc.klass}: {', '.join(verdict.failures)}\n  {sc.describe()}\n  "
+                                  + "\n  ".join(verdict.details))
