@@ -218,13 +218,18 @@ class _Encoder:
         return ["object", n, name, fields]
 
     def _items(self, items: Iterable[Any]) -> list[Any]:
-        out = []
-        for i, x in enumerate(items):
-            try:
-                out.append(self.node(x))
-            except CodecError as exc:
-                raise exc.within(f"[{i}]") from None
-        return out
+        return _each(items, self.node)
+
+
+def _each(items: Iterable[Any], node: Callable[[Any], Any]) -> list[Any]:
+    """``node`` of each of ``items``; an error names the item's place (``[i]``)."""
+    out = []
+    for i, x in enumerate(items):
+        try:
+            out.append(node(x))
+        except CodecError as exc:
+            raise exc.within(f"[{i}]") from None
+    return out
 
 
 def encode(root: Any, registry: Registry) -> tuple[Any, dict[str, np.ndarray]]:
@@ -369,13 +374,7 @@ class _Decoder:
         raise CodecError(f"not a node: {tag!r}")
 
     def _items(self, items: list) -> list:
-        out = []
-        for i, x in enumerate(items):
-            try:
-                out.append(self.node(x))
-            except CodecError as exc:
-                raise exc.within(f"[{i}]") from None
-        return out
+        return _each(items, self.node)
 
 
 def _arity(node: list, n: int) -> None:
