@@ -9,28 +9,6 @@ import numpy as np
 
 from tests.helpers.cli import run
 
-AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
-
-
-def untrusted_rows(seq, out, t_off=0.05, r_off=1.0) -> list[int]:
-    """Frames of ``out``/motion.csv more than ``t_off`` m or ``r_off`` deg off the truth whose
-    status does not say so (``lost`` or ``reinit``) and whose std does not cover the error
-    within 4x on every axis."""
-    with open(seq / "groundtruth_motion.csv", newline="") as f:
-        gt = {int(r["frame"]): r for r in csv.DictReader(f)}
-    bad = []
-    with open(out / "motion.csv", newline="") as f:
-        for r in csv.DictReader(f):
-            g = gt[int(r["frame"])]
-            e = np.array([float(r[a]) - float(g[a]) for a in AXES])
-            if np.linalg.norm(e[:3]) <= t_off and np.linalg.norm(e[3:]) <= r_off:
-                continue
-            std = np.array([float(r["std_" + a] or "nan") for a in AXES])
-            if r["status"] in ("lost", "reinit") or np.all(np.abs(e) <= 4 * std):
-                continue
-            bad.append(int(r["frame"]))
-    return bad
-
 
 def _dim(seq, tmp_path, gains):
     """A copy of ``seq`` with frame k's contrast scaled by ``gains[k]`` about its mean."""
