@@ -33,9 +33,10 @@ The box (each parameter drawn per scenario):
 * ground: flat (40 %), rolling, slope or a rock field (monovo_cli.synth.terrain, rendered by
   ray casting; synth's ray caster marches rays that graze the ground for kilometres, so over
   terrain the pitch is raised in 5 deg steps until the horizon of the mean ground stays
-  HORIZON_DEG above every frame, recorded in synth.yaml as ``pitch_deg_rendered``); the rover straddles the rocks (its body on the plane under its wheels over
-  the base ground) or, in 30 % of the rock fields, climbs them (the wheels on the rocks: the
-  camera jerks when a wheel meets one);
+  HORIZON_DEG above every frame, recorded in synth.yaml as ``pitch_deg_rendered``); the
+  rover straddles the rocks (its body on the plane under its wheels over the base ground)
+  or, in 30 % of the rock fields, climbs them (the wheels on the rocks: the camera jerks
+  when a wheel meets one);
 * texture: synth's procedural one, gravel, a low texture (the procedural one blurred by 3-8
   texels, 10-30 % of its contrast), a checkerboard (4-32 texel squares, a repetitive
   texture), or a photo-like natural texture synthesised here (a dead-leaves image of discs
@@ -109,7 +110,7 @@ from benchmarks.common import final_drift, machine, one_core
 from monovo_cli.geometry.lie import make_pose, se3_inv, so3_exp
 from monovo_cli.io.formats import read_tum
 from monovo_cli.synth.gravel import gravel_texture
-from monovo_cli.synth.motion import body_on_ground, bobbed_mount, camera_mount, smooth
+from monovo_cli.synth.motion import bobbed_mount, body_on_ground, camera_mount, smooth
 from monovo_cli.synth.raycast import TerrainRenderer
 from monovo_cli.synth.render import (
     GroundRenderer,

@@ -1,11 +1,12 @@
 """The scenario soak's CI slice (issue 40): small scenarios drawn by benchmarks.soak's
 generator with fixed seeds, each tracked and held to the soak's invariants.
 
-``draw(SEED, index, tiny=True)`` (the first PER_CLASS of each class): 96-160 px, 8-15 frames, otherwise the soak's whole box
-(terrain, turns, jerks, textures, lighting, blank, corrupt and dropped frames). monovo runs
-in-process through click's CliRunner with the soak's arguments: the exit status is the one
-the command line returns (an internal error is exit 1 there too). A failing scenario replays
-with ``python -m benchmarks.soak --seed 40 --tiny --only INDEX --keep /tmp/x``.
+``draw(SEED, index, tiny=True)`` (the first PER_CLASS of each class): 96-160 px, 8-15
+frames, otherwise the soak's whole box (terrain, turns, jerks, textures, lighting, blank,
+corrupt and dropped frames). monovo runs in-process through click's CliRunner with the
+soak's arguments: the exit status is the one the command line returns (an internal error is
+exit 1 there too). A failing scenario replays with ``python -m benchmarks.soak --seed 40
+--tiny --only INDEX --keep /tmp/x``.
 
 Scenarios that fail today on a tracker defect are marked ``xfail(strict=True)`` with the
 defect named, so that the fix shows as an XPASS to be unmarked; the invariants themselves
