@@ -30,6 +30,7 @@ import time
 from pathlib import Path
 
 from benchmarks.common import load, machine, one_core
+from benchmarks.docs_section import write_section
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.io.atomic import atomic_write_with
 from monovo_cli.io.checkpoint import (
@@ -94,9 +95,12 @@ def main() -> None:
     ap.add_argument("--size", default="512x512", help="WxH of the rendered drive")
     ap.add_argument("--repeats", type=int, default=11)
     ap.add_argument("--terrain-out", action="store_true", help="keep the terrain map too")
+    ap.add_argument("--write-docs", action="store_true",
+                    help="rewrite this benchmark's section of docs/benchmarks.md")
     args = ap.parse_args()
     one_core()
-    print(f"Machine: {machine()}; {load()} at the start\n")
+    start_load = load()
+    print(f"Machine: {machine()}; {start_load} at the start\n")
     with tempfile.TemporaryDirectory(prefix="monovo-checkpoint-") as tmp:
         seq = args.seq
         if seq is None:
@@ -116,21 +120,27 @@ def main() -> None:
         new_size = (out / CHECKPOINT_FILE).stat().st_size
         read_new = timed(lambda: read_checkpoint(out, types, TrackingState), 3)
         read_pkl = timed(lambda: read_old(out), 3)
-    print(f"State after frame {checkpoint.next_frame - 1} of {seq.name} "
-          f"({args.size if args.seq is None else 'as given'}"
-          f"{', terrain map kept' if args.terrain_out else ''}); "
-          f"{args.repeats} writes of each, alternating.\n")
-    print("| format | size (MB) | write median (ms) | min-max | read median (ms) |")
-    print("| --- | --- | --- | --- | --- |")
+    lines = [f"State after frame {checkpoint.next_frame - 1} of {seq.name} "
+             f"({args.size if args.seq is None else 'as given'}"
+             f"{', terrain map kept' if args.terrain_out else ''}); "
+             f"{args.repeats} writes of each, alternating.", "",
+             "| format | size (MB) | write median (ms) | min-max | read median (ms) |",
+             "| --- | --- | --- | --- | --- |"]
     for name, size, t, r in (("pickle (before format 6), SHA-256 taken", old_size, old, read_pkl),
                              (".npz + JSON (format 6)", new_size, new, read_new),
                              (".npz + JSON, SHA-256 taken as before", new_size, hashed, None)):
         read = "-" if r is None else f"{1e3 * statistics.median(r):.1f}"
-        print(f"| {name} | {size / 1e6:.2f} | {1e3 * statistics.median(t):.1f} | "
-              f"{1e3 * min(t):.1f}-{1e3 * max(t):.1f} | {read} |")
-    print(f"\nnew / old: size {new_size / old_size:.3f}, write time "
-          f"{statistics.median(new) / statistics.median(old):.3f} "
-          f"({statistics.median(hashed) / statistics.median(old):.3f} with the SHA-256; medians)")
+        lines.append(f"| {name} | {size / 1e6:.2f} | {1e3 * statistics.median(t):.1f} | "
+                     f"{1e3 * min(t):.1f}-{1e3 * max(t):.1f} | {read} |")
+    lines += ["", f"new / old: size {new_size / old_size:.3f}, write time "
+              f"{statistics.median(new) / statistics.median(old):.3f} "
+              f"({statistics.median(hashed) / statistics.median(old):.3f} with the SHA-256; medians)"]
+    text = "\n".join(lines)
+    print(text)
+    if args.write_docs:
+        write_section("checkpoint", "The checkpoint without pickle (issue 43)",
+                      f"`python -m benchmarks.checkpoint`\n\n{machine()}; {start_load} at the "
+                      f"start, {load()} at the end\n\n{text}\n")
     print(f"\n({load()} at the end.)")
 
 
