@@ -54,16 +54,25 @@ SHELF_FLOOR_Y_M = 0.266
 # --------------------------------------------------------------------------- conversions
 
 
-def kitti_poses(text: str) -> list[np.ndarray]:
-    """KITTI pose rows (12 floats, a 3x4 ``[R | t]`` row-major, camera k in camera 0's frame)
-    as 4x4 ``T_0_k``."""
-    poses = []
+def number_rows(text: str, n: int, what: str) -> list[np.ndarray]:
+    """The non-blank lines of ``text`` as arrays of ``n`` floats (``what`` names them in the
+    error of a line that has another count)."""
+    rows = []
     for line in text.splitlines():
         if not line.strip():
             continue
         v = np.array([float(x) for x in line.split()], dtype=float)
-        if v.size != 12:
-            raise ValueError(f"a KITTI pose row has 12 numbers, not {v.size}")
+        if v.size != n:
+            raise ValueError(f"{what} has {n} numbers, not {v.size}")
+        rows.append(v)
+    return rows
+
+
+def kitti_poses(text: str) -> list[np.ndarray]:
+    """KITTI pose rows (12 floats, a 3x4 ``[R | t]`` row-major, camera k in camera 0's frame)
+    as 4x4 ``T_0_k``."""
+    poses = []
+    for v in number_rows(text, 12, "a KITTI pose row"):
         T = np.eye(4)
         T[:3, :] = v.reshape(3, 4)
         poses.append(T)
@@ -82,12 +91,7 @@ def rotvec_pose_rows(text: str) -> list[np.ndarray]:
     """The course's poses.txt rows ``wx wy wz tx ty tz`` (rotation vector rad, translation):
     the world-to-camera transform ``T_C_W``, returned as 4x4 ``T_C_W``."""
     out = []
-    for line in text.splitlines():
-        if not line.strip():
-            continue
-        v = np.array([float(x) for x in line.split()], dtype=float)
-        if v.size != 6:
-            raise ValueError(f"a pose row has 6 numbers, not {v.size}")
+    for v in number_rows(text, 6, "a pose row"):
         T = np.eye(4)
         T[:3, :3] = so3_exp(v[:3])
         T[:3, 3] = v[3:]
