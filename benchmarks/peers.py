@@ -36,10 +36,13 @@ rotation-vector components deg). On the pairs a few estimates diverge (metres of
 such pair dominates a mean, so the pairs table gives the mean absolute error over the pairs
 on which no method diverged (an error above 1 m or 1 deg on some axis, or no estimate), the
 number each method diverged on, and the median over all pairs. On the drive: the mean over
-every frame, failures (no homography or no solution: the previous motion is repeated) and
-the final drift of the chained trajectory. Then time per pair / frame on one core (wall and
-this process's CPU time) and the ratios monovo / best peer (per axis, the best of the peers
-on that axis) and monovo frames/s / ECC frames/s (either stop). Every run first validates the
+the frames each method estimated, its failures (a peer's: no homography or no solution, the
+previous motion is repeated; monovo's: the rows of status ``lost``, which hold the motion it
+predicted, and beside them its ``reinit`` rows, tracking restarted after a loss) and the
+final drift of the chained trajectory. A pair monovo reports lost counts as no estimate.
+Then time per pair / frame on one core (wall and this process's CPU time) and the ratios
+monovo / best peer (per axis, the best of the peers on that axis) and monovo frames/s / ECC
+frames/s (either stop). Every run first validates the
 decomposition on exact homographies (``--check``: only that, and both peers on noise-free
 pairs). ~6 min.
 """
@@ -67,8 +70,9 @@ from benchmarks.common import (
     options_note,
     track_options,
 )
-from benchmarks.paper_tables import run_pairs
+from benchmarks.paper_tables import track_pairs
 from monovo_cli.core.options import TrackOptions
+from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.lie import make_pose, se3_inv
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.io.config import load_init
@@ -201,10 +205,11 @@ class MethodResult:
     cpu: float  # total CPU time of this process over the same
     count: int  # frames or pairs timed
     drift: tuple[float, float, float] | None = None  # drive: final error m, distance m, heading deg
+    reinit: int | None = None  # monovo: rows of status reinit (restarted after a loss); peers None
 
     @property
     def failed(self) -> int:
-        """Motions the method gave no estimate for."""
+        """Motions the method gave no estimate for (monovo: its rows of status lost)."""
         return int(np.isnan(self.errors[:, 0]).sum())
 
     @property
@@ -276,6 +281,14 @@ def peer_on_drive(peer, seq: Path) -> MethodResult:
                         final_drift(np.array(poses), gt_traj))
 
 
+def monovo_errors(est: np.ndarray, gt: np.ndarray, statuses: list[str]) -> np.ndarray:
+    """(n, 6) errors of monovo's motions ``est`` against ``gt``, NaN rows where the status is
+    lost: such a row holds the motion monovo predicted when it gave up, not an estimate, so it
+    counts as a failure (a peer's failure too leaves a NaN row)."""
+    return np.array([np.full(6, np.nan) if s == FrameStatus.LOST else motion_errors(e, g)
+                     for e, g, s in zip(est, gt, statuses)]).reshape(-1, 6)
+
+
 def monovo_on_drive(seq: Path, out: Path, options=None, **track_kw) -> MethodResult:
     """monovo end to end on a drive (``track_kw``: more arguments of ``track_sequence``), on
     one thread unless ``track_kw`` says otherwise: the frames decoded in the frame loop, the
@@ -284,12 +297,12 @@ def monovo_on_drive(seq: Path, out: Path, options=None, **track_kw) -> MethodRes
     track_kw.setdefault("threads", 1)
     with Stopwatch() as watch:
         track_sequence(seq, None, out, options or TrackOptions(), **track_kw)
-    _, est, _ = read_motion_csv(out / "motion.csv")
+    _, est, status = read_motion_csv(out / "motion.csv")
     _, gt, _ = read_motion_csv(seq / "groundtruth_motion.csv")
     _, traj = read_tum(out / "trajectory.tum")
     _, gt_traj = read_tum(seq / "groundtruth.tum")
-    errs = np.array([motion_errors(e, g) for e, g in zip(est, gt)])
-    return MethodResult("monovo", errs, watch.wall, watch.cpu, len(traj), final_drift(traj, gt_traj))
+    return MethodResult("monovo", monovo_errors(est, gt, status), watch.wall, watch.cpu, len(traj),
+                        final_drift(traj, gt_traj), reinit=status.count(FrameStatus.REINIT))
 
 
 # --------------------------------------------------------------------------- tables
@@ -330,16 +343,20 @@ def pairs_table(results: list[MethodResult]) -> str:
     return "\n".join(lines)
 
 
+def _failed_cell(r: MethodResult) -> str:
+    return str(r.failed) if r.reinit is None else f"{r.failed}; {r.reinit} reinit"
+
+
 def drive_table(results: list[MethodResult]) -> str:
     """Mean |error| of every frame's motion, failures, final drift, time."""
-    head = (f"| method | {' | '.join(AXES)} | transl. avg (m) | rot. avg (deg) | failed | final "
-            "position error (% of distance) | final heading error (deg) | ms/frame wall (CPU) | "
-            "frames/s wall (CPU) |")
+    head = (f"| method | {' | '.join(AXES)} | transl. avg (m) | rot. avg (deg) | failed (monovo: "
+            "lost; and its reinit) | final position error (% of distance) | final heading error "
+            "(deg) | ms/frame wall (CPU) | frames/s wall (CPU) |")
     lines = [head, "|" + " --- |" * (head.count("|") - 1)]
     for r in results:
         err, dist, heading = r.drift
         lines.append(f"| {r.name} | " + " | ".join(
-            _avg_cells(r.mean_abs(), "{:.2e}") + [str(r.failed), f"{100 * err / dist:.3f}",
+            _avg_cells(r.mean_abs(), "{:.2e}") + [_failed_cell(r), f"{100 * err / dist:.3f}",
                                                   f"{heading:.3f}"] + _time_cells(r)) + " |")
     return "\n".join(lines)
 
@@ -435,10 +452,11 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         if args.pairs:
             root = Path(tmp) / "pairs"
-            errs, _, secs, cpu = run_pairs(root, args.pairs, args.pair_noise_var,
-                                           args.pair_seed, track_options(args),
-                                           not args.noisy_frame0)
+            synthesize(root, preset="pairs", frames=args.pairs, noise_var=args.pair_noise_var,
+                       seed=args.pair_seed, clean_frame0=not args.noisy_frame0)
+            errs, frame1, secs, cpu = track_pairs(root, track_options(args))
             pairs = sorted(p for p in root.iterdir() if p.name.startswith("pair_"))
+            errs[np.array([r.status == FrameStatus.LOST for r in frame1], bool)] = np.nan  # predicted
             pair_res = [MethodResult("monovo", errs, float(secs.sum()), float(cpu.sum()), len(pairs))]
             pair_res += [peer_on_pairs(p, pairs) for p in all_peers()]
             print(f"### {args.pairs} pairs of the paper protocol (688x544, noise variance "
