@@ -15,13 +15,16 @@ turns in place, seed 3; all 512², noise variance 10; seeds 11-13, those of
 path (``benchmarks.integrity.final_pct``), floored at 0.05 % so that the noise of errors
 nobody cares about cannot decide.
 
-**The rule** (fixed before any second half was looked at): a value's score is the geometric
-mean over the five sequences of its error divided by the error of the configuration it
-would replace. The lowest score wins if it is below 0.9 (a change must buy at least 10 %
-over the five) and no sequence's error more than doubles; otherwise the value in place is
-kept. The constants are swept one after the other in the order listed below, each from the
-values already chosen (one pass of coordinate descent), so the last table's chosen row is
-the final configuration.
+**The rule**: a value's score is the geometric mean over the five sequences of its floored
+error, and the lowest score wins; scores equal to 1e-9 (relative) tie, and a tie goes to the
+value swept first (values in ascending order, False before True). The value in place is one
+of the values like any other: it gets no margin a challenger must beat and no veto (the
+first rule, fixed before any second half was looked at, kept it unless a challenger's
+score relative to it was below 0.9 and no sequence's error more than doubled against it,
+which favoured whatever was in place). The table also gives each value's largest ratio to
+the best value's error on a sequence. The constants are swept one after the other in the
+order listed below, each from the values already chosen (one pass of coordinate descent),
+so the last table's chosen row is the final configuration.
 
 **Reporting.** desk_b and kitti_ramp tracked whole, at the current defaults and at the chosen
 values: the final error over the whole run and over each half (frames ``0..N/2`` and
@@ -70,8 +73,7 @@ from monovo_cli.synth.write import synthesize
 
 REAL_NAMES = ("desk_b", "kitti_ramp")
 FLOOR_PCT = 0.05  # % of the path: errors below count as this
-MIN_GAIN = 0.9  # a change must bring the score below this
-MAX_WORSE = 2.0  # ... and no sequence's error may grow more than this many times
+TIE = 1e-9  # scores this close (relative) are equal
 
 
 @dataclass(frozen=True)
@@ -199,10 +201,16 @@ def halves(seq: Path, options: TrackOptions) -> list[str]:
             f"{final_pct(T[h:], gt[h:]):.2f}", f"{run.lost} / {run.reinit}"]
 
 
-def score(errors: list[float], base: list[float]) -> tuple[float, float]:
-    """(geometric mean of the floored ratios, largest ratio) of ``errors`` against ``base``."""
-    r = [max(e, FLOOR_PCT) / max(b, FLOOR_PCT) for e, b in zip(errors, base)]
-    return math.exp(float(np.mean(np.log(r)))), max(r)
+def score(errors: list[float]) -> float:
+    """The geometric mean of ``errors`` (% of the path), each floored at ``FLOOR_PCT``."""
+    return math.exp(float(np.mean(np.log(np.maximum(errors, FLOOR_PCT)))))
+
+
+def choose(rows: dict[Any, list[float]]) -> Any:
+    """The value of ``rows`` (value -> errors on the tuning sequences, in the order swept)
+    with the lowest :func:`score`; of values tied within ``TIE``, the first."""
+    best = min(score(e) for e in rows.values())
+    return next(v for v, e in rows.items() if score(e) <= best * (1 + TIE))
 
 
 def sweep(const: Constant, config: dict[Constant, Any], seqs: list[Path]) -> Any:
@@ -213,19 +221,18 @@ def sweep(const: Constant, config: dict[Constant, Any], seqs: list[Path]) -> Any
     for value in sorted(set(const.values) | {in_place}, key=lambda v: (isinstance(v, bool), v)):
         with configured({**config, const: value}) as options:
             rows[value] = [error_pct(s, options) for s in seqs]
-    base = rows[in_place]
-    scored = {v: score(e, base) for v, e in rows.items()}
-    candidates = [v for v, (s, worst) in scored.items()
-                  if s < MIN_GAIN and worst <= MAX_WORSE]
-    chosen = min(candidates, key=lambda v: scored[v][0]) if candidates else in_place
+    chosen = choose(rows)
+    floored = np.maximum(np.array(list(rows.values())), FLOOR_PCT)
+    worst = (floored / floored.min(axis=0)).max(axis=1)  # against each sequence's best value
     names = " | ".join(s.name for s in seqs)
     lines = []
-    for value, errors in rows.items():
+    for (value, errors), w in zip(rows.items(), worst):
         mark = (" (in place)" if value == in_place else "") + (" **chosen**" if value == chosen else "")
-        s, worst = scored[value]
-        lines.append([f"{value}{mark}", *(f"{e:.3f}" for e in errors), f"{s:.3f}", f"{worst:.2f}"])
+        lines.append([f"{value}{mark}", *(f"{e:.3f}" for e in errors), f"{score(errors):.3f}",
+                      f"{w:.2f}"])
     print(f"#### {const.name} (chosen before: {const.documented})\n")
-    print(table(f"| {const.name} | {names} | score | largest ratio |", lines) + "\n", flush=True)
+    print(table(f"| {const.name} | {names} | score (geometric mean, % of path) | largest ratio to "
+                "a sequence's best |", lines) + "\n", flush=True)
     return chosen
 
 
