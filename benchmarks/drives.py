@@ -60,6 +60,18 @@ def inject_faults(frames_dir: Path, n_frames: int, seed: int = 0) -> dict[int, s
     return out
 
 
+def frames_to_resume(k: int, status: list[str], est: np.ndarray, gt: np.ndarray,
+                     dist: float) -> int:
+    """Frames after fault frame ``k`` until tracking has resumed (``status`` per frame, frame 0
+    first; ``est`` and ``gt`` the poses T_0_j (N, 4, 4); ``dist`` the drive's distance, m)."""
+    # tracking has resumed at frame j when j's pose relative to frame 0 is within 1 cm again
+    j = k + 1
+    while j < len(status) and (status[j] == "lost" or
+                               np.linalg.norm(est[j][:3, 3] - gt[j][:3, 3]) > 0.01 + 0.01 * dist):
+        j += 1
+    return j - k
+
+
 def run_case(root: Path, name: str, frames: int, seed: int) -> dict:
     seq = root / name
     synthesize(seq, preset="drive", frames=frames, noise_var=10.0, seed=seed,
@@ -76,14 +88,7 @@ def run_case(root: Path, name: str, frames: int, seed: int) -> dict:
     # flagged: lost, or tracked with a reported std over 3x the typical one (low weight)
     low_weight = [k for k in faults if status[k] != "lost" and np.nanmax(std[k] / typical) > 3.0]
     flagged = sum(status[k] == "lost" for k in faults) + len(low_weight)
-    # tracking has resumed at frame j when j's pose relative to frame 0 is within 1 cm again
-    resume = []
-    for k in faults:
-        j = k + 1
-        while j < len(status) and (status[j] == "lost" or
-                                   np.linalg.norm(est[j][:3, 3] - gt[j][:3, 3]) > 0.01 + 0.01 * dist):
-            j += 1
-        resume.append(j - k)
+    resume = [frames_to_resume(k, status, est, gt, dist) for k in faults]
     lost_outside = sum(1 for k, st in enumerate(status) if st == "lost" and k not in faults)
     shutil.rmtree(seq)
     return {"case": name, "frames": frames, "distance": dist, "error": err,
