@@ -30,8 +30,12 @@ ECC 4-6 levels, 50/100 iterations, 3/5/7 px pre-filter, as the most accurate of 
 Measured: the pairs of ``benchmarks.paper_tables`` (688x544, noise variance 10, same seed,
 so the same frames; images in memory, all three methods given both frames) and a
 ``monovo synth --preset drive`` sequence (512x512, noise variance 10) tracked frame to frame
-and chained: monovo end to end through ``runner.track_sequence``, the peers decoding the same
-PNGs in their timed loop. Errors are per axis of the motions ``T_{k-1}_k`` (translation m,
+and chained: monovo end to end, the whole ``pipeline.track.track_sequence`` call timed
+(reading init.yaml, frame 0's decode and ground model, every frame, the smoothing in
+hindsight and every file ``monovo track`` writes: motion.csv, trajectory.csv and .tum,
+trajectory.png, report.html, run.yaml); the peers end to end over the same PNGs, their whole
+loop timed (every decode, frame 0's included, estimate and decomposition; they write
+nothing). Errors are per axis of the motions ``T_{k-1}_k`` (translation m,
 rotation-vector components deg). On the pairs a few estimates diverge (metres off), and one
 such pair dominates a mean, so the pairs table gives the mean absolute error over the pairs
 on which no method diverged (an error above 1 m or 1 deg on some axis, or no estimate), the
@@ -293,7 +297,8 @@ def monovo_on_drive(seq: Path, out: Path, options=None, **track_kw) -> MethodRes
     """monovo end to end on a drive (``track_kw``: more arguments of ``track_sequence``), on
     one thread unless ``track_kw`` says otherwise: the frames decoded in the frame loop, the
     thread budget of the peers it is timed against (``monovo track`` decodes ahead on a
-    second thread by default)."""
+    second thread by default). Timed: the whole ``track_sequence`` call, from reading
+    init.yaml and frame 0 to the last file written (report.html unless ``report=False``)."""
     track_kw.setdefault("threads", 1)
     with Stopwatch() as watch:
         track_sequence(seq, None, out, options or TrackOptions(), **track_kw)
@@ -477,8 +482,11 @@ def main() -> None:
             print(f"### {args.frames}-frame drive ({args.size}, noise variance "
                   f"{args.drive_noise_var:g}, seed {args.drive_seed}), frame to frame, mean "
                   "absolute error of T_{k-1}_k\n")
-            print("Time per frame end to end: PNG decode + estimate (monovo: "
-                  "`runner.track_sequence`, writing its outputs). One core.\n")
+            print("Time per frame end to end, one core: monovo the whole `track_sequence` call "
+                  "(init.yaml, frame 0's decode and ground model, every frame, the smoothing in "
+                  "hindsight, and its files: motion.csv, trajectory.csv and .tum, "
+                  "trajectory.png, report.html, run.yaml); the peers their whole loop over the "
+                  "PNGs (decode, estimate, decomposition; no file written).\n")
             print(drive_table(drive_res) + "\n")
     print("### Ratios\n")
     print(ratio_table(pair_res, drive_res))

@@ -5,11 +5,12 @@
 
 For each value of :data:`monovo_cli.core.plane.belief.TILT_CHANGE_DEG` (the std of each tilt
 angle's process noise per keyframe, see docs/algorithm.md "The new keyframe's plane"), every
-sequence is tracked end to end with default options otherwise (``pipeline.track``, one core):
-the real sequences of ``../shared/real`` (``--real DIR`` elsewhere; skipped, with a line
-saying so, when absent) and the terrain drives of :mod:`benchmarks.terrain` (rendered once
-into ``--renders``). Printed: the final position error as % of the ground-truth path and the
-final heading error per sequence and value.
+sequence is tracked with default options otherwise as ``monovo track`` tracks it (the whole
+``pipeline.track.track_sequence`` call, one core; nothing is timed): the real sequences of
+``../shared/real`` (``--real DIR`` elsewhere; skipped, with a line saying so, when absent)
+and the terrain drives of :mod:`benchmarks.terrain` (rendered once into ``--renders``).
+Printed: the final position error as % of the ground-truth path and the final heading error
+per sequence and value.
 """
 
 from __future__ import annotations

@@ -14,9 +14,11 @@ seed 0), the built-in procedural texture the constants were chosen on and ``grav
 they were not, and for each share of monovo's default point budget (one point per 2 pixels:
 ``--max-points`` = share x width x height / 2):
 
-* **speed** -- monovo end to end on one thread (``peers.monovo_on_drive``: decode, tracking,
-  outputs) against the ECC peer (``peers.EccPeer``, its 1e-6 stop) on the same PNGs, one
-  thread each: ECC, then every share once, then ECC again, ``--repeats`` times; each monovo
+* **speed** -- monovo end to end on one thread (``peers.monovo_on_drive``: the whole
+  ``track_sequence`` call, from reading init.yaml and frame 0 to the last file written,
+  report.html and trajectory.png included) against the ECC peer (``peers.EccPeer``, its 1e-6
+  stop; its whole loop: decode, estimate, decomposition, no file written) on the same PNGs,
+  one thread each: ECC, then every share once, then ECC again, ``--repeats`` times; each monovo
   run against the mean of the ECC runs either side of it; the median ratio of the repeats
   and their range (wall clock; CPU time in brackets);
 * **accuracy** -- the final position error (% of the path), the RMS over the frames of the
@@ -36,10 +38,10 @@ information a share s gives 1/sqrt(s).
 
 With ``../shared/real`` present (``--real DIR`` elsewhere; said when absent), the real
 sequences desk_b and kitti_ramp are tracked at each share too (final error % of the path,
-frames/s), since fewer points could matter less where the model's error, not the noise,
-dominates. Their default budget does not bind (fewer pixels than that pass the gradient
-threshold in their regions), so there a share is of the median points a frame used at the
-default. One core (OpenCV, BLAS), fixed seeds.
+frames/s of the whole ``track_sequence`` call), since fewer points could matter less where
+the model's error, not the noise, dominates. Their default budget does not bind (fewer
+pixels than that pass the gradient threshold in their regions), so there a share is of the
+median points a frame used at the default. One core (OpenCV, BLAS), fixed seeds.
 """
 
 from __future__ import annotations
@@ -230,7 +232,7 @@ def main() -> None:
                 print("### The real sequences at the same shares (`monovo track --threads 1`, "
                       "default options but `--max-points`)\n")
                 print("| sequence | share of the default's points | `--max-points` | points a "
-                      "frame used (median) | final error (% of path) | frames/s wall (CPU) |")
+                      "frame used (median) | final error (% of path) | frames/s wall (CPU), whole call |")
                 print("| --- " * 6 + "|")
                 print("\n".join(real) + "\n")
     print(f"({load()} at the end.)")
