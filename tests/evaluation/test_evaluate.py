@@ -287,8 +287,8 @@ def test_cli_eval_partial_run_and_alignments(tum_pair, tmp_path):
 
 
 def test_ate_matches_evo(tum_pair):
-    """Cross-check against evo (GPL; a dev-only extra, skipped where it is not installed),
-    through the same comparison benchmarks/overlay_accuracy.py prints."""
+    """Cross-check against evo (GPL; in the test extra, so CI runs it; skipped where it is
+    not installed), through the same comparison benchmarks/overlay_accuracy.py prints."""
     pytest.importorskip("evo")
     from benchmarks.overlay_accuracy import evo_check
 
