@@ -85,10 +85,15 @@ def write_report(out_dir: Path, run: TrackRun, config: InitConfig, record: Mappi
 
 
 def run_summary(run: TrackRun) -> str:
-    """One line of the run's figures."""
+    """One line of the run's figures; the mean msd is over the frames fitted on some
+    observation point (an unreadable frame's msd 0 in motion.csv is no measurement)."""
+    fitted = np.asarray(run.points[1:]) > 0
+    msd = np.asarray(run.msd[1:], dtype=float)[fitted]
+    mean = f"{float(msd.mean()):.2f}" if len(msd) else "n/a"
+    unfitted = "" if fitted.all() else f" of the {int(fitted.sum())} frames fitted"
     return (f"{run.frames} frames in {run.seconds:.1f} s; {run.count(FrameStatus.OK)} ok, "
             f"{run.reanchored} re-anchored, {run.reinit} re-initialised, {run.lost} lost; "
-            f"mean msd {run.mean_msd:.2f}; path length {run.path_length:.3f} m")
+            f"mean msd {mean}{unfitted}; path length {run.path_length:.3f} m")
 
 
 def events_table(run: TrackRun) -> str:

@@ -182,3 +182,18 @@ def test_batch_index_links_every_report(broken_drive, small_drive, tmp_path):
         assert_self_contained(out / h)
     text = (out / INDEX_FILE).read_text()
     assert text.index("broken") < text.index("lossy/") and "(no report)" in text
+
+
+def test_an_unreadable_frame_is_left_out_of_the_mean_msd(small_drive, tmp_path):
+    from monovo_cli.pipeline.report import run_summary
+    from monovo_cli.pipeline.tracking import track_frames
+
+    seq = tmp_path / "seq"
+    shutil.copytree(small_drive, seq)
+    (seq / "frames" / "frame_000004.png").write_bytes(b"not a png")
+    run = track_frames(seq, skip_bad_frames=True)
+    assert run.points[4] == 0 and run.msd[4] == 0  # motion.csv's numbers, no measurement
+    fitted = [k for k in range(1, 10) if k != 4]
+    mean = float(np.mean(run.msd[fitted]))
+    assert abs(mean - run.mean_msd) > 0.01  # the zero would pull it down
+    assert f"mean msd {mean:.2f} of the 8 frames fitted;" in run_summary(run)
