@@ -118,25 +118,51 @@ class CovarianceWriter:
         self._stream.close()
 
 
+IDENTITY_ATOL = 1e-12  # a pose this close to the identity (m, matrix entries) is the identity
+
+
+def pose_fields(world_from_cam: np.ndarray) -> list[str]:
+    """``tx ty tz qx qy qz qw`` (m; qw >= 0) of a 4x4 pose as text. A pose within
+    :data:`IDENTITY_ATOL` of the identity is written as the exact identity: what is left
+    there is the rounding of the compositions that made it (frame 0's ``T_0_0`` reads
+    ``0 0 0 0 0 0 1.0``, not ``-6.66e-17 ...``)."""
+    T = np.asarray(world_from_cam, dtype=float)
+    if np.all(np.abs(T - np.eye(4)) <= IDENTITY_ATOL):
+        T = np.eye(4)
+    q = quat_from_matrix(T[:3, :3])
+    return [*(fmt(v) for v in T[:3, 3]), *(fmt(v) for v in q)]
+
+
+def timestamp_format(timestamps: Sequence[float]) -> str:
+    """The one fixed-point format (``".3f"``) of a file's timestamp column: the fewest
+    decimals, at least 1 and at most 9 (ns), that write every timestamp as it is (so ``0.0``
+    beside ``1.0``, ``0.00`` beside ``0.05``; 9 when one needs more)."""
+    ts = [float(t) for t in timestamps]
+    for d in range(1, 10):
+        if all(float(f"{t:.{d}f}") == t for t in ts):
+            return f".{d}f"
+    return ".9f"
+
+
 def trajectory_csv_text(frames: Sequence[int], timestamps: Sequence[float],
                         world_from_cam: Sequence[np.ndarray]) -> str:
-    """trajectory.csv content: ``T_0_k`` per frame as translation + quaternion (qw >= 0)."""
+    """trajectory.csv content: ``T_0_k`` per frame as translation + quaternion (qw >= 0)
+    (:func:`pose_fields`), the timestamps (s) in one format (:func:`timestamp_format`)."""
     buf = io.StringIO()
     buf.write(",".join(TRAJECTORY_COLUMNS) + "\n")
+    tf = timestamp_format(timestamps)
     for k, ts, T in zip(frames, timestamps, world_from_cam):
-        q = quat_from_matrix(T[:3, :3])
-        buf.write(",".join([str(k), fmt(ts), *(fmt(v) for v in T[:3, 3]),
-                            *(fmt(v) for v in q)]) + "\n")
+        buf.write(",".join([str(k), format(float(ts), tf), *pose_fields(T)]) + "\n")
     return buf.getvalue()
 
 
 def tum_text(timestamps: Sequence[float], world_from_cam: Sequence[np.ndarray]) -> str:
-    """TUM trajectory: ``timestamp tx ty tz qx qy qz qw`` per line, single spaces."""
-    lines = []
-    for ts, T in zip(timestamps, world_from_cam):
-        q = quat_from_matrix(T[:3, :3])
-        lines.append(" ".join([fmt(ts), *(fmt(v) for v in T[:3, 3]), *(fmt(v) for v in q)]))
-    return "".join(line + "\n" for line in lines)
+    """TUM trajectory: ``timestamp tx ty tz qx qy qz qw`` per line, single spaces; poses as
+    :func:`pose_fields` writes them, the timestamps (s) in one format
+    (:func:`timestamp_format`)."""
+    tf = timestamp_format(timestamps)
+    return "".join(" ".join([format(float(ts), tf), *pose_fields(T)]) + "\n"
+                   for ts, T in zip(timestamps, world_from_cam))
 
 
 def motion_csv_text(rows: Iterable[MotionRow], *, with_std: bool = False) -> str:

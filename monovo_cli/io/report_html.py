@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import base64
 import html
-from collections.abc import Iterable, Sequence
+import math
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 
 import cv2
@@ -67,20 +68,73 @@ def img_tag(image: np.ndarray | bytes, alt: str, *, width: int | None = None) ->
     return f'<img src="{uri}" alt="{esc(alt)}"{size}>'
 
 
+def column_format(values: Iterable[object]) -> Callable[[float], str]:
+    """The one notation of a column of numbers: fixed-point with the decimals that give the
+    smallest non-zero magnitude 3 significant digits (none for whole numbers), or
+    scientific with 3 decimals for all when that would take more than 9 decimals or a
+    magnitude reaches 1e9 -- so ``4.45e-05`` never stands beside ``0.000979``. Not finite:
+    "n/a"."""
+    mags = [abs(float(v)) for v in values
+            if isinstance(v, (int, float, np.number)) and not isinstance(v, (bool, np.bool_))
+            and math.isfinite(float(v))]
+    nonzero = [m for m in mags if m > 0]
+    whole = all(float(m).is_integer() for m in mags)
+    decimals = 0 if whole or not nonzero else max(0, 2 - math.floor(math.log10(min(nonzero))))
+    scientific = decimals > 9 or (any(m >= 1e9 for m in mags) and not whole)
+
+    def text(x: float) -> str:
+        x = float(x)
+        if not math.isfinite(x):
+            return "n/a"
+        return f"{x:.3e}" if scientific else f"{x:.{decimals}f}"
+
+    return text
+
+
+def cell_text(value: object) -> str:
+    """A value as a person reads it: yes / no for booleans, "-" for None, a list as its
+    items joined by commas, a mapping as ``key: value`` pairs, a float in the shortest
+    ``g`` notation (a column of measures is formatted by :func:`column_format` instead)."""
+    if isinstance(value, (bool, np.bool_)):
+        return "yes" if value else "no"
+    if value is None:
+        return "-"
+    if isinstance(value, (float, np.floating)):
+        return f"{float(value):g}" if math.isfinite(value) else "n/a"
+    if isinstance(value, Mapping):
+        return "; ".join(f"{k}: {cell_text(v)}" for k, v in value.items())
+    if isinstance(value, (list, tuple)):
+        return ", ".join(cell_text(v) for v in value)
+    return str(value)
+
+
 def table(header: Sequence[str], rows: Iterable[Sequence[object]], *,
           numeric: Sequence[bool] | None = None,
           row_classes: Iterable[str] | None = None) -> str:
     """A ``<table>`` of ``rows`` under ``header``; cells are escaped unless they are
-    :class:`Markup`; ``numeric`` flags right-aligned columns; ``row_classes`` one CSS
-    class per row ("" for none)."""
+    :class:`Markup`, values written by :func:`cell_text`; ``numeric`` flags right-aligned
+    columns, whose numbers are written in one notation each (:func:`column_format`;
+    strings in them stay as they are); ``row_classes`` one CSS class per row ("" for
+    none)."""
     numeric = list(numeric or [False] * len(header))
+    rows = [list(r) for r in rows]
+    formats = [column_format(r[i] for r in rows if i < len(r)) if numeric[i] else None
+               for i in range(len(header))]
     classes = iter(row_classes) if row_classes is not None else None
+
+    def cell(i: int, c: object) -> str:
+        if isinstance(c, Markup):
+            return c
+        if formats[i] is not None and isinstance(c, (int, float, np.number)) \
+                and not isinstance(c, (bool, np.bool_)):
+            return esc(formats[i](c))
+        return esc(cell_text(c))
+
     out = ["<table>", "<tr>" + "".join(f"<th>{esc(h)}</th>" for h in header) + "</tr>"]
     for row in rows:
         cls = next(classes) if classes is not None else ""
-        cells = "".join(
-            f'<td{" class=num" if numeric[i] else ""}>{c if isinstance(c, Markup) else esc(c)}</td>'
-            for i, c in enumerate(row))
+        cells = "".join(f'<td{" class=num" if numeric[i] else ""}>{cell(i, c)}</td>'
+                        for i, c in enumerate(row))
         out.append(f'<tr class="{esc(cls)}">{cells}</tr>' if cls else f"<tr>{cells}</tr>")
     out.append("</table>")
     return "\n".join(out)

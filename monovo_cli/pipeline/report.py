@@ -85,10 +85,15 @@ def write_report(out_dir: Path, run: TrackRun, config: InitConfig, record: Mappi
 
 
 def run_summary(run: TrackRun) -> str:
-    """One line of the run's figures."""
+    """One line of the run's figures; the mean msd is over the frames fitted on some
+    observation point (an unreadable frame's msd 0 in motion.csv is no measurement)."""
+    fitted = np.asarray(run.points[1:]) > 0
+    msd = np.asarray(run.msd[1:], dtype=float)[fitted]
+    mean = f"{float(msd.mean()):.2f}" if len(msd) else "n/a"
+    unfitted = "" if fitted.all() else f" of the {int(fitted.sum())} frames fitted"
     return (f"{run.frames} frames in {run.seconds:.1f} s; {run.count(FrameStatus.OK)} ok, "
             f"{run.reanchored} re-anchored, {run.reinit} re-initialised, {run.lost} lost; "
-            f"mean msd {run.mean_msd:.2f}; path length {run.path_length:.3f} m")
+            f"mean msd {mean}{unfitted}; path length {run.path_length:.3f} m")
 
 
 def events_table(run: TrackRun) -> str:
@@ -113,8 +118,9 @@ def events_table(run: TrackRun) -> str:
 
 def evaluation_section(run: TrackRun, groundtruth: Path) -> str:
     """The run's trajectory against the ground truth file ``groundtruth`` as ``monovo eval
-    --align se3`` measures it (:func:`~monovo_cli.pipeline.evaluate.evaluate_run`): its
-    figures as a table and its plots; a note when it cannot be evaluated."""
+    --align se3`` measures it (:func:`~monovo_cli.pipeline.evaluate.evaluate_run`): a line
+    of how the poses were paired, its figures as tables (:func:`evaluation_tables`) and its
+    plots; a note when it cannot be evaluated."""
     from monovo_cli.pipeline.evaluate import EvalOptions, eval_plot_images, evaluate_run
 
     try:
@@ -122,44 +128,118 @@ def evaluation_section(run: TrackRun, groundtruth: Path) -> str:
                               name="this run")
     except MonovoError as exc:
         return f'<p class="note">not evaluated: {esc(exc)}</p>'
-    d = result.as_dict()
-    d.pop("inputs", None)
-    rows = [[name, _number(v)] for name, v in _flat(d)]
     plots = "".join(img_tag(image, name) for name, image in eval_plot_images(result).items())
     return (f'<p class="note">against {esc(groundtruth.name)}, SE(3) aligned, as '
-            "<code>monovo eval --align</code> gives it: APE, RPE by frame and by distance "
+            "<code>monovo eval --align se3</code> gives it: APE, RPE by frame and by distance "
             "travelled, and each relative motion's error against its reported std</p>"
-            + table(("measure", "value"), rows, numeric=(False, True)) + plots)
+            + evaluation_tables(result.as_dict()) + plots)
+
+
+AXES = ("tx", "ty", "tz", "rx", "ry", "rz")
+ALIGNED = {None: "no alignment", "se3": "SE(3) aligned", "sim3": "Sim(3) aligned"}
+
+
+def evaluation_tables(d: Mapping[str, Any]) -> str:
+    """``monovo eval``'s figures (:meth:`~monovo_cli.pipeline.evaluate.EvalResult.as_dict`'s
+    ``d``) as a line and tables a person reads: the pairing; the trajectory's errors; the
+    relative-motion errors per axis (the paper's Tables 10.1 and 10.2); APE and RPE
+    statistics; the errors by travelled distance; the share of errors inside the reported
+    std's band. Units in the headers, one number format per column."""
+    paired = (f"by time, within {d['max_dt_s']:g} s" if d.get("pairing") == "time"
+              else "by frame number")
+    line = (f"{d['poses']} of {d['estimate_poses']} estimated and {d['groundtruth_poses']} "
+            f"true poses paired {paired}: {d['relative_motions']} relative motions over "
+            f"{d['distance_m']:.3f} m of true path")
+    if d.get("partial"):
+        line += " (a partial match: the measures cover the paired poses only)"
+    if d.get("alignment") == "sim3":
+        line += f"; the estimate scaled by {d['scale']:.6g}"
+    out = [f'<p>{esc(line)}.</p>', "<h3>Trajectory</h3>"]
+    rows = [("ATE RMSE, no alignment", d["ate_rmse_m"], "m"),
+            ("ATE max, no alignment", d["ate_max_m"], "m")]
+    if d.get("ate_rmse_aligned_m") is not None:
+        rows.append((f"ATE RMSE, {ALIGNED[d.get('alignment')]}", d["ate_rmse_aligned_m"], "m"))
+    rows += [("final drift", d["final_drift_m"], "m"),
+             ("final drift, of the path", _na(d.get("final_drift_pct")), "%"),
+             ("final rotation error", d["final_rotation_error_deg"], "deg"),
+             ("rotation drift", _na(d.get("rotation_drift_deg_per_m")), "deg/m")]
+    out.append(table(("measure", "value", "unit"), rows, numeric=(False, True, False)))
+
+    rel = d["relative_errors"]
+    rows = [[axis, rel["t" + axis]["mean_m"], rel["t" + axis]["std_m"],
+             rel["r" + axis]["mean_deg"], rel["r" + axis]["std_deg"]] for axis in "xyz"]
+    rows.append(["average", d["translation_average"]["mean_m"], d["translation_average"]["std_m"],
+                 d["rotation_average"]["mean_deg"], d["rotation_average"]["std_deg"]])
+    out += ["<h3>Absolute relative-motion errors per axis (Tables 10.1 and 10.2)</h3>",
+            table(("axis", "translation mean (m)", "translation std (m)", "rotation mean (deg)",
+                   "rotation std (deg)"), rows, numeric=(False, True, True, True, True))]
+
+    ape, rpe = d["ape"]["translation_m"], d["rpe"]
+    stats = ("rmse", "mean", "median", "std", "min", "max")
+    rows = [[k, _na(ape[k]), _na(rpe["translation_m"][k]), _na(rpe["rotation_deg"][k])]
+            for k in stats]
+    out += [f"<h3>APE ({esc(ALIGNED[d['ape'].get('alignment')])}) and RPE (between poses "
+            f"{int(rpe['delta_poses'])} apart)</h3>",
+            table(("statistic", "APE translation (m)", "RPE translation (m)",
+                   "RPE rotation (deg)"), rows, numeric=(False, True, True, True))]
+
+    seg = d["segments"]
+    rows = [[f"{m['length_m']:g} m", m["segments"], _na(m["translation_pct"]),
+             _na(m["rotation_deg_per_m"])] for m in seg["by_length"]]
+    rows.append(["all", seg["segments"], _na(seg["translation_pct"]),
+                 _na(seg["rotation_deg_per_m"])])
+    starts = ("every paired pose" if seg["step_poses"] == 1
+              else f"every {seg['step_poses']}th paired pose")
+    out += [f"<h3>Errors by travelled distance ({esc(starts)} starts a segment of each "
+            "length)</h3>",
+            table(("segment length", "segments", "translation error (%)",
+                   "rotation error (deg/m)"), rows, numeric=(False, True, True, True))]
+
+    band = d.get("std_band")
+    if band:
+        rows = [[a, _pct(band["inside_fraction_by_axis"][a]), _na(band["normalised_std"][a])]
+                for a in AXES]
+        rows.append(["all", _pct(band["inside_fraction"]), "-"])
+        out += [f"<h3>The reported std: errors inside ±{band['sigmas']:g} std "
+                f"({band['motions']} relative motions)</h3>",
+                table(("axis", f"inside ±{band['sigmas']:g} std (%)",
+                       "std of error / reported std"), rows, numeric=(False, True, True)),
+                '<p class="note">where the reported std is honest (and the errors Gaussian), '
+                "the errors' std is 1 reported std and 99.7 % of them lie inside ±3 std</p>"]
+    return "\n".join(out)
+
+
+def _na(v: Any) -> Any:
+    """A measure, or "n/a" where there is none (None, not finite)."""
+    return "n/a" if v is None or (isinstance(v, float) and not math.isfinite(v)) else v
+
+
+def _pct(fraction: Any) -> Any:
+    return _na(fraction) if _na(fraction) == "n/a" else 100.0 * float(fraction)
 
 
 def record_tables(record: Mapping[str, Any]) -> str:
-    """run.yaml's options and inputs as two tables of dotted names and values."""
+    """run.yaml's record, its options and its inputs as three tables of dotted names and
+    values (lists of values joined by commas, yes / no, "-" for none)."""
     out = []
     for part in ("options", "inputs"):
-        rows = [[name, _number(v)] for name, v in _flat(record.get(part, {}))]
+        rows = _flat(record.get(part, {}))
         out.append(f"<h3>{part}</h3>" + table(("name", "value"), rows))
     head = {k: v for k, v in record.items() if k not in ("options", "inputs")}
-    return table(("name", "value"), [[k, v] for k, v in head.items()]) + "\n".join(out)
+    return table(("name", "value"), _flat(head)) + "\n".join(out)
 
 
 def _flat(value: Any, prefix: str = "") -> list[tuple[str, Any]]:
-    """(dotted name, leaf) of a nested mapping; lists of plain values stay whole."""
+    """(dotted name, leaf) of a nested mapping; a list of mappings gives ``name[i].key``
+    rows, a list of plain values stays whole."""
     if isinstance(value, Mapping):
         out: list[tuple[str, Any]] = []
         for k, v in value.items():
             out += _flat(v, f"{prefix}.{k}" if prefix else str(k))
         return out
+    if isinstance(value, (list, tuple)) and any(isinstance(v, Mapping) for v in value):
+        return [row for i, v in enumerate(value) for row in _flat(v, f"{prefix}[{i}]")]
     return [(prefix, value)]
-
-
-def _number(v: Any) -> str:
-    if isinstance(v, float):
-        return "n/a" if not math.isfinite(v) else f"{v:.6g}"
-    if isinstance(v, Path):
-        return str(v)
-    if isinstance(v, (list, tuple)):
-        return ", ".join(_number(x) for x in v)
-    return "-" if v is None else str(v)
 
 
 # ----------------------------------------------------------------------------- batch

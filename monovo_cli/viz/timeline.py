@@ -5,7 +5,9 @@ coloured ``ok``, ``reanchored``, ``reinit`` or ``lost``), the msd (grey levels^2
 observation points, and the reported standard deviations of the frame-to-frame motion,
 translation (mm, the norm of (tx, ty, tz)) and rotation (deg, the norm of (rx, ry, rz)).
 Lost frames are marked by red and re-initialised frames by orange vertical lines through
-every panel; a value that is not finite (no estimate) leaves a gap in its curve.
+every panel; a value that is not finite (no estimate), and the msd and points of a frame
+that was not fitted (an unreadable frame: motion.csv's msd, iterations and points 0), leave a
+gap in the curve.
 
 Pure: arrays in, a BGR uint8 image out.
 """
@@ -34,6 +36,27 @@ def _panel_ticks(lo: float, hi: float) -> list[float]:
     return [i * step for i in range(math.ceil(lo / step), math.floor(hi / step) + 1)]
 
 
+def timeline_curves(msd: np.ndarray, points: np.ndarray,
+                    std: np.ndarray) -> list[tuple[str, np.ndarray]]:
+    """The four curves of :func:`plot_timeline`, ``(name with unit, (N,) values)``, NaN where
+    a frame has no value to draw: frame 0 (no estimate), and a frame whose fit used no
+    observation point (``points`` 0: an unreadable frame skipped, a frame lost before any
+    fit), whose msd 0 and points 0 in motion.csv are no measurement -- drawn, they would
+    dip to a perfect fit. ``std`` (N, 6) as :func:`plot_timeline` takes it."""
+    points = np.asarray(points, dtype=float)
+    n = len(points)
+    std = np.asarray(std, dtype=float).reshape(n, 6)
+    est = np.arange(n) >= 1
+    fitted = est & (points > 0)
+    return [
+        ("msd (grey levels^2)", np.where(fitted, np.asarray(msd, dtype=float), np.nan)),
+        ("points", np.where(fitted, points, np.nan)),
+        ("std translation (mm)", np.where(est, 1e3 * np.linalg.norm(std[:, :3], axis=1), np.nan)),
+        ("std rotation (deg)", np.where(est, np.degrees(np.linalg.norm(std[:, 3:], axis=1)),
+                                        np.nan)),
+    ]
+
+
 def plot_timeline(index: np.ndarray, status: Sequence[str], msd: np.ndarray,
                   points: np.ndarray, std: np.ndarray, *,
                   size: tuple[int, int] = (1000, 560)) -> np.ndarray:
@@ -42,7 +65,8 @@ def plot_timeline(index: np.ndarray, status: Sequence[str], msd: np.ndarray,
     ``index`` (N,) frame indices; ``status`` (N,) :class:`FrameStatus` values; ``msd`` (N,)
     grey levels^2; ``points`` (N,) observation points; ``std`` (N, 6) of (tx, ty, tz) m and
     (rx, ry, rz) rad (NaN where none). Frame 0 (the first) carries no estimate: its values
-    are not drawn.
+    are not drawn; nor are the msd and points of a frame fitted on no point
+    (:func:`timeline_curves`).
     """
     w, h = size
     idx = np.asarray(index, dtype=float)
@@ -50,15 +74,7 @@ def plot_timeline(index: np.ndarray, status: Sequence[str], msd: np.ndarray,
     n = len(idx)
     if n == 0 or len(st) != n:
         raise ValueError(f"timeline: expected N >= 1 frames with N statuses, got {n} and {len(st)}")
-    std = np.asarray(std, dtype=float).reshape(n, 6)
-    est = np.arange(n) >= 1
-    curves = [
-        ("msd (grey levels^2)", np.where(est, np.asarray(msd, dtype=float), np.nan)),
-        ("points", np.where(est, np.asarray(points, dtype=float), np.nan)),
-        ("std translation (mm)", np.where(est, 1e3 * np.linalg.norm(std[:, :3], axis=1), np.nan)),
-        ("std rotation (deg)", np.where(est, np.degrees(np.linalg.norm(std[:, 3:], axis=1)),
-                                        np.nan)),
-    ]
+    curves = timeline_curves(msd, points, std)
     img = np.full((h, w, 3), BACKGROUND, np.uint8)
     ts = max(0.4, w / 2200.0)
     (_, lh), _ = cv2.getTextSize("Ag", FONT, ts, 1)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import base64
+import html
 import shutil
 from html.parser import HTMLParser
 from pathlib import Path
@@ -31,6 +32,54 @@ class _Page(HTMLParser):
 
     def of(self, tag: str) -> list[dict[str, str | None]]:
         return [a for t, a in self.tags if t == tag]
+
+
+class _Tables(HTMLParser):
+    """Every table's cells: ``tables[t][row]`` a list of ``(text, numeric)``."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.tables: list[list[list[tuple[str, bool]]]] = []
+        self._cell: list[str] | None = None
+        self._numeric = False
+
+    def handle_starttag(self, tag, attrs):
+        if tag == "table":
+            self.tables.append([])
+        elif tag == "tr":
+            self.tables[-1].append([])
+        elif tag == "td":
+            self._cell, self._numeric = [], ("class", "num") in attrs
+
+    def handle_data(self, data):
+        if self._cell is not None:
+            self._cell.append(data)
+
+    def handle_endtag(self, tag):
+        if tag == "td":
+            self.tables[-1][-1].append(("".join(self._cell), self._numeric))
+            self._cell = None
+
+
+def numeric_columns(text: str) -> list[list[str]]:
+    """The numbers of every right-aligned column of every table of ``text`` (not "n/a", "-")."""
+    p = _Tables()
+    p.feed(text)
+    columns = []
+    for rows in p.tables:
+        width = max((len(r) for r in rows), default=0)
+        for i in range(width):
+            cells = [r[i] for r in rows if i < len(r)]
+            if any(numeric for _, numeric in cells):
+                columns.append([c for c, _ in cells if c not in ("n/a", "-")])
+    return columns
+
+
+def notation(number: str) -> tuple[bool, int]:
+    """(scientific, decimals) of a number as written."""
+    float(number)  # a number
+    mantissa = number.lower().split("e")[0]
+    return "e" in number.lower(), len(mantissa.split(".")[1]) if "." in mantissa else 0
 
 
 def parse(path: Path) -> _Page:
@@ -103,9 +152,43 @@ def test_report_is_self_contained_with_every_section(broken_run):
     for k in (5, 6, 7):
         assert run.reason[k] and run.reason[k] in text
     assert "<td>5-6</td>" not in text  # two reasons: two rows
-    assert "ate_rmse_m" in text and "final_drift_m" in text  # eval's figures
+    assert "ATE RMSE, SE(3) aligned" in text and "final drift" in text  # eval's figures
     assert "track.reinit_after" in text and "<h3>inputs</h3>" in text  # run.yaml's record
     assert "init_yaml.sha256" in text
+
+
+def test_report_reads_as_tables_not_python_values(broken_run):
+    """No dict, list of dicts, True / False or None as Python prints them; the ground truth's
+    figures in tables with units; every numeric column in one notation."""
+    run, out = broken_run
+    raw = (out / REPORT_FILE).read_text(encoding="utf-8")
+    text = html.unescape(raw)
+    for repr_ in ("{'", "[{", "True", "False", "None", "': "):
+        assert repr_ not in text, repr_
+    assert "<td>track.feature_hypothesis</td><td>yes</td>" in raw
+    assert "<th>translation mean (m)</th>" in raw and "<th>RPE rotation (deg)</th>" in raw
+    assert "<td>5 m</td>" in raw  # the segments by length: one row each, not a list of dicts
+    columns = numeric_columns(raw)
+    assert len(columns) == 13  # the evaluation's five tables, 1 + 4 + 3 + 3 + 2 columns
+    assert sum(len(c) > 1 for c in columns) >= 8  # (this short drive has no 1 m segment)
+    for column in columns:
+        assert len({notation(c) for c in column}) <= 1, column
+    # the relative-motion errors: the paper's table, one row per axis
+    p = _Tables()
+    p.feed(raw)
+    axes = next(t for t in p.tables if t and t[-1] and t[-1][0][0] == "average")
+    assert [r[0][0] for r in axes[1:]] == ["x", "y", "z", "average"]
+
+
+def test_column_format_is_one_notation():
+    from monovo_cli.io.report_html import column_format
+
+    f = column_format([4.45345e-05, 0.000979401, 0.0, float("nan")])
+    assert [f(v) for v in (4.45345e-05, 0.000979401, 0.0, float("nan"))] == \
+        ["0.0000445", "0.0009794", "0.0000000", "n/a"]
+    assert [column_format([3, 120])(v) for v in (3, 120)] == ["3", "120"]
+    g = column_format([1e-12, 2.0])
+    assert [g(1e-12), g(2.0)] == ["1.000e-12", "2.000e+00"]
 
 
 def test_report_without_terrain_or_truth(small_drive, tmp_path):
@@ -182,3 +265,18 @@ def test_batch_index_links_every_report(broken_drive, small_drive, tmp_path):
         assert_self_contained(out / h)
     text = (out / INDEX_FILE).read_text()
     assert text.index("broken") < text.index("lossy/") and "(no report)" in text
+
+
+def test_an_unreadable_frame_is_left_out_of_the_mean_msd(small_drive, tmp_path):
+    from monovo_cli.pipeline.report import run_summary
+    from monovo_cli.pipeline.tracking import track_frames
+
+    seq = tmp_path / "seq"
+    shutil.copytree(small_drive, seq)
+    (seq / "frames" / "frame_000004.png").write_bytes(b"not a png")
+    run = track_frames(seq, skip_bad_frames=True)
+    assert run.points[4] == 0 and run.msd[4] == 0  # motion.csv's numbers, no measurement
+    fitted = [k for k in range(1, 10) if k != 4]
+    mean = float(np.mean(run.msd[fitted]))
+    assert abs(mean - run.mean_msd) > 0.01  # the zero would pull it down
+    assert f"mean msd {mean:.2f} of the 8 frames fitted;" in run_summary(run)

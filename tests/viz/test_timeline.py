@@ -47,3 +47,33 @@ def test_timeline_of_one_frame_and_bad_input():
     assert img.ndim == 3
     with pytest.raises(ValueError, match="expected N >= 1 frames with N statuses, got 2 and 1"):
         plot_timeline([0, 1], ["ok"], [0.0, 1.0], [0, 1], np.zeros((2, 6)))
+
+
+def test_a_frame_fitted_on_no_point_leaves_gaps_not_a_perfect_fit(small_drive, tmp_path):
+    """An unreadable frame skipped with --skip-bad-frames: motion.csv keeps its msd,
+    iterations and points 0 (whole numbers, as the contract asks), the timeline draws none."""
+    import shutil
+
+    from monovo_cli.pipeline.tracking import track_frames
+    from monovo_cli.viz.timeline import timeline_curves
+
+    seq = tmp_path / "seq"
+    shutil.copytree(small_drive, seq)
+    (seq / "frames" / "frame_000004.png").write_bytes(b"not a png")
+    run = track_frames(seq, skip_bad_frames=True)
+    assert run.status[4] == FrameStatus.LOST and run.reason[4] == "unreadable frame"
+    assert (run.msd[4], run.iterations[4], run.points[4]) == (0, 0, 0)
+    curves = dict(timeline_curves(run.msd, run.points, run.std))
+    for name in ("msd (grey levels^2)", "points"):
+        assert np.isnan(curves[name][[0, 4]]).all(), name  # gaps, not 0
+        assert np.isfinite(curves[name][[1, 2, 3, 5, 6, 7, 8, 9]]).all(), name
+        assert np.nanmin(curves[name]) > 1.0, name  # nothing dips to a perfect fit
+    np.testing.assert_allclose(curves["msd (grey levels^2)"][5:], run.msd[5:], rtol=0)
+    # the prediction's std of the lost frame is a stated value: drawn
+    assert np.isfinite(curves["std translation (mm)"][4])
+    # the drawing is the one of the same run with no values there at all
+    gap = np.asarray(run.msd, float).copy(), np.asarray(run.points, float).copy()
+    gap[0][4] = gap[1][4] = np.nan
+    drawn = plot_timeline(run.index, run.status, run.msd, run.points, run.std, size=(600, 400))
+    np.testing.assert_array_equal(
+        drawn, plot_timeline(run.index, run.status, *gap, run.std, size=(600, 400)))
