@@ -7,13 +7,15 @@ the inlier score that ranks candidate fits, the frame's fit (:meth:`FitChecks.fi
 capture (:meth:`FitChecks.capture`) that tries the starts beyond the prediction's reach. The
 other functions test a frame before it is fitted (:func:`constant_or_invalid`), its step
 (:func:`step_too_large`) and whether it should anchor the next keyframe
-(:func:`needs_reanchor`). docs/algorithm.md section 4 gives the rules.
+(:func:`needs_reanchor`); :class:`OdometryState` decides where a frame's fit starts.
+docs/algorithm.md section 4 gives the rules.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
+from enum import Enum
 from functools import partial
 
 import numpy as np
@@ -25,10 +27,20 @@ from monovo_cli.core.keyframe import Keyframe, footprint
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.recovery.lost_frames import LostFrameRecovery
 from monovo_cli.geometry.camera import PinholeCamera
-from monovo_cli.geometry.lie import so3_log
+from monovo_cli.geometry.lie import se3_inv, so3_log
 from monovo_cli.image.pyramid import extend_pyramid
 
 CHANCE_SHARE = 0.5  # a fit leaving half the keyframe's intensity variance is no fit
+
+
+class OdometryState(Enum):
+    """Where the tracker stands between frames: it decides the next frame's first guess."""
+
+    STARTING = "starting"      # no frame estimated yet: standing still is the prediction, and
+    #                            the rotation search gives the first guess
+    TRACKING = "tracking"      # the last accepted frame's motion (constant velocity) is the guess
+    RECOVERING = "recovering"  # a frame was lost: the rotation search gives the guess, and the
+    #                            next accepted frame anchors a new keyframe
 
 
 def divergence(est: Estimate, options: TrackOptions, sigma: float, chance_msd: float,
@@ -117,6 +129,18 @@ class FitChecks:
                                        predicted=prediction, recovery=recovery, brightness=brightness)
         return est, reason, captured, from_prediction
 
+    def refit(self, key: Keyframe, pyr: list[np.ndarray], new: Estimate, est: Estimate
+              ) -> Estimate | None:
+        """The fit ``new`` against ``key`` (a corrected plane's keyframe) if it passes the
+        checks, else the fit from ``est``'s pose from the top level if that one does
+        (``est``, fitted over the old plane, can be far off); None if neither passes."""
+        if self.failure(new, key):
+            new = estimate_motion(key.levels, pyr, est.cur_from_key, options=self.options.estimator,
+                                  gain=est.gain, bias=est.bias)
+            if self.failure(new, key):
+                return None
+        return new
+
     def capture(self, index: int, key: Keyframe, image: np.ndarray, pyr: list[np.ndarray],
                 guess: np.ndarray, est: Estimate | None, reason: str, *, predicted: np.ndarray,
                 recovery: LostFrameRecovery, brightness: tuple[float, float]
@@ -159,13 +183,15 @@ class FitChecks:
         return est, reason
 
 
-def step_too_large(step: Callable[[], np.ndarray], options: TrackOptions) -> str:
-    """Why the frame's step (``step()``, 4x4 ``prev_from_cur``, taken only when a maximum is
-    set) is beyond ``options``' maximum step, or ''."""
+def step_too_large(world_from_prev: np.ndarray, key: Keyframe, cur_from_key: np.ndarray,
+                   options: TrackOptions) -> str:
+    """Why the frame's step from the previous pose ``world_from_prev`` (4x4) to its pose
+    ``cur_from_key`` (4x4) against ``key`` is beyond ``options``' maximum step, or ''."""
     o = options
     if o.max_step_m is None and o.max_step_deg is None:
         return ""
-    step = step()
+    world_from_cur = key.world_from_key @ se3_inv(cur_from_key)
+    step = se3_inv(world_from_prev) @ world_from_cur
     if o.max_step_m is not None and np.linalg.norm(step[:3, 3]) > o.max_step_m:
         return f"step beyond the maximum step {o.max_step_m} m"
     if o.max_step_deg is not None and \

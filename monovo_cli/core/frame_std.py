@@ -133,13 +133,30 @@ def from_predicted(variance: np.ndarray, prev_from_cur: np.ndarray) -> np.ndarra
     return (J * variance) @ J.T
 
 
-def accepted_covariance(cov: np.ndarray, model: np.ndarray, handed_over: np.ndarray | None,
-                        gap_variance: np.ndarray, prev_from_cur: np.ndarray) -> np.ndarray:
-    """(6, 6) an accepted frame's covariance before the unforeseen change: the noise's ``cov``,
-    the ``model`` error its row measured (terrain grid correction, split halves), the model
-    error ``handed_over`` by the re-anchor before it (None: none; a row that re-anchors in
-    turn states its own) and what a previous pose known only to the prediction leaves
-    (``gap_variance`` (6,), :func:`from_predicted` of ``prev_from_cur``; zeros: none).
+def lost_row(index: int, timestamp: float, world_from_cur: np.ndarray, prev_from_cur: np.ndarray,
+             std: np.ndarray, est: Estimate | None, keyframe: int, brightness: tuple[float, float],
+             reason: str) -> FrameResult:
+    """The row of a lost frame ``index``: its pose (4x4 ``world_from_cur``, ``prev_from_cur``)
+    the prediction's or the feature hypothesis', its covariance the diagonal of ``std`` (6,:
+    :func:`prediction_std`), the failed fit ``est``'s numbers (None: none was made; a NaN msd
+    as 0), ``keyframe`` the current keyframe, ``brightness`` the last gain and bias."""
+    msd = est.msd if est is not None and np.isfinite(est.msd) else 0.0
+    its = est.iterations if est is not None else 0
+    pts = est.points if est is not None else 0
+    return FrameResult(index, timestamp, world_from_cur, prev_from_cur, msd, its, pts,
+                       FrameStatus.LOST, std, np.diag(std ** 2), keyframe, *brightness, reason)
+
+
+def accepted_covariance(cov: np.ndarray, differences: Sequence[np.ndarray],
+                        handed_over: np.ndarray | None, gap_variance: np.ndarray,
+                        prev_from_cur: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(covariance, model error)`` (6, 6) of an accepted frame's motion ``prev_from_cur``
+    (4x4) before the unforeseen change: the noise's ``cov``, the model error its row measured
+    (the sum of the outer products of ``differences`` (6,): the correction its terrain grid
+    made, its split halves' spreads), the model error ``handed_over`` by the re-anchor before
+    it (None: none; a row that re-anchors in turn states its own) and what a previous pose
+    known only to the prediction leaves (``gap_variance`` (6,), :func:`from_predicted`;
+    zeros: none).
 
     The first motion against a keyframe: its points sit on the plane (or the grid) the
     re-anchor fitted, with that fit's model error, and over one frame's baseline the robust
@@ -147,12 +164,15 @@ def accepted_covariance(cov: np.ndarray, model: np.ndarray, handed_over: np.ndar
     6-8.5 std, where the rows after it are within 2). It carries the error its re-anchor
     measured on its own row (counting both made a MER drive's std, which re-anchors on
     nearly every frame, 1.4-1.9x wider still)."""
+    model = np.zeros((6, 6))
+    for d in differences:
+        model += np.outer(d, d)
     if handed_over is not None:
         cov = cov + handed_over
     cov = cov + model
     if gap_variance.any():  # the previous pose was only predicted: its error is ours
         cov = cov + from_predicted(gap_variance, prev_from_cur)
-    return cov
+    return cov, model
 
 
 def split_spread(key: Keyframe, pyr: list[np.ndarray], est: Estimate, options: EstimatorOptions,

@@ -30,19 +30,19 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import replace
-from enum import Enum
 from functools import partial
 
 import numpy as np
 
 from monovo_cli.core.checks import (
     FitChecks,
+    OdometryState,
     constant_or_invalid,
     divergence,
     needs_reanchor,
     step_too_large,
 )
-from monovo_cli.core.estimator.estimate import Estimate, estimate_motion
+from monovo_cli.core.estimator.estimate import Estimate
 from monovo_cli.core.estimator.split import SPLIT_POINTS, SPLIT_POINTS_REANCHOR
 from monovo_cli.core.estimator.terrain_grid import (
     TerrainGrid,
@@ -53,6 +53,7 @@ from monovo_cli.core.frame_std import (
     FrameResult,
     accepted_covariance,
     from_predicted,
+    lost_row,
     motion_change,
     prediction_std,
     refuted,
@@ -64,17 +65,16 @@ from monovo_cli.core.keyframe import Keyframe, build_keyframe
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.plane.belief import PlaneLink
 from monovo_cli.core.plane.motion_covariance import MotionCovariance
-from monovo_cli.core.plane.successor import Successor, successor
+from monovo_cli.core.plane.successor import successor
 from monovo_cli.core.plane.tracker import InitialTilt, Mounting, PlaneTracker
-from monovo_cli.core.recovery.gap import GapClosure
 from monovo_cli.core.recovery.lost_frames import LostFrameRecovery
 from monovo_cli.core.recovery.reinit import (
     GoodFrame,
+    fresh_start,
+    gap_closure,
     gap_reference,
     looks_usable,
-    predicted_twist,
     resolve_gap,
-    resolved_pose,
     resolved_row,
 )
 from monovo_cli.core.status import FrameStatus
@@ -86,16 +86,6 @@ from monovo_cli.image.gradients import difference_sigma
 from monovo_cli.image.pyramid import build_pyramid
 
 _from_predicted = from_predicted  # (its name here before the rules moved to frame_std)
-
-
-class OdometryState(Enum):
-    """Where the tracker stands between frames: it decides the next frame's first guess."""
-
-    STARTING = "starting"      # no frame estimated yet: standing still is the prediction, and
-    #                            the rotation search gives the first guess
-    TRACKING = "tracking"      # the last accepted frame's motion (constant velocity) is the guess
-    RECOVERING = "recovering"  # a frame was lost: the rotation search gives the guess, and the
-    #                            next accepted frame anchors a new keyframe
 
 
 class Odometry:
@@ -252,9 +242,8 @@ class Odometry:
             index, key, image, pyr, guess, predicted, self._state is OdometryState.STARTING,
             prediction=self._predicted, recovery=self._recovery, brightness=(self._gain, self._bias))
         if not reason:
-            cur_from_key = orthonormalize(est.cur_from_key)
-            reason = step_too_large(lambda: se3_inv(self._world_from_prev) @ (
-                self._key.world_from_key @ se3_inv(cur_from_key)), self.options)
+            reason = step_too_large(self._world_from_prev, key, orthonormalize(est.cur_from_key),
+                                    self.options)
         if reason:
             if self._lost_run >= self.options.reinit_after and looks_usable(image):
                 return self._reinit(index, timestamp, image, pyr, reason)
@@ -274,7 +263,6 @@ class Odometry:
         """Frame ``index`` has no usable image: record it as lost at the prediction."""
         return self._lost(index, timestamp, "unreadable frame")
 
-    # -- outcomes ---------------------------------------------------------------------
     def _accept(self, index: int, timestamp: float, image: np.ndarray, pyr: list[np.ndarray],
                 est: Estimate, *, captured: bool = False, refuted: bool = False) -> FrameResult:
         """Record ``est`` (``captured``: it came from the capture's starts, not from the
@@ -282,12 +270,10 @@ class Odometry:
         A captured frame's, and a re-anchoring frame's, split-half spread joins its covariance
         (:func:`frame_std.split_spread`); a motion the prediction did not foresee widens it
         (:meth:`_unforeseen`) unless the prediction was refuted."""
-        closing = None  # the lost frames before this one: what the prediction would say here
+        gap = None  # the lost frames before this one: what the prediction would say here
         if self._lost_run and self._good is not None:
-            predicted = self._predicted
-            last = self._prediction_std(np.zeros(6), self._lost_run + 1)
-            closing = (orthonormalize(self._key.world_from_key @ se3_inv(predicted)),
-                       np.array(self._gap_steps + [last ** 2]))
+            gap = gap_closure(self._good, self._key, self._predicted, self._gap_steps,
+                              self._prediction_std(np.zeros(6), self._lost_run + 1))
         if self._plane.wants_test(self._key, index):
             est = self._settle_plane(index, pyr, est)
         key = self._key
@@ -300,29 +286,21 @@ class Odometry:
         spread = split_spread(key, pyr, est, self.options.estimator,
                               SPLIT_POINTS if captured else SPLIT_POINTS_REANCHOR, self._motion_to) \
             if captured or reanchor else []
-        tracked, nxt = est, None
-        if reanchor and key.index != index:  # the next keyframe, its plane in this camera
-            nxt = successor(key, pyr, est, self._plane, self._motion_cov, self.options, recovering)
-            est = nxt.est
-            if nxt.rebuilt is not None:  # (rebuilt in place: the points at their terrain grid)
-                self.rebuilt_keyframes.append(nxt.rebuilt)
+        nxt = successor(key, pyr, est, self._plane, self._motion_cov, self.options, recovering,
+                        anchoring=reanchor and key.index != index)  # its plane in this camera
+        tracked, est, terrain_grid = est, nxt.est, nxt.terrain_grid
+        self.rebuilt_keyframes += [] if nxt.rebuilt is None else [nxt.rebuilt]
         cur_from_key = orthonormalize(est.cur_from_key)
-        if nxt is None:  # (the plane carried, for the re-anchor of a recovering tracker)
-            nxt = Successor(est, key.plane.in_frame(cur_from_key), None, est.gain, est.bias, None)
-        terrain_grid = nxt.terrain_grid
         world_from_cur = orthonormalize(key.world_from_key @ se3_inv(cur_from_key))
         prev_from_cur = orthonormalize(se3_inv(self._world_from_prev) @ world_from_cur)
-        cov = self._motion_cov.relative(est, key.levels[0], key.plane,
-                                        self._plane.reported_covariance,
-                                        self._cur_from_key_prev, prev_from_cur)
-        model = np.zeros((6, 6))
-        if terrain_grid is not None:  # the correction the terrain grid made is this motion's model error
-            jump = motion_change(prev_from_cur, self._motion_to(key, orthonormalize(tracked.cur_from_key)))
-            model += np.outer(jump, jump)
-        for half, _ in spread:  # a captured frame's model error, as its halves disagree
-            model += np.outer(half, half)
-        cov = accepted_covariance(cov, model, None if reanchor else self._handed_over,
-                                  self._gap_variance, prev_from_cur)
+        # the model error: the correction the terrain grid made, the split halves' spread
+        jumps = [] if terrain_grid is None else [
+            motion_change(prev_from_cur, self._motion_to(key, orthonormalize(tracked.cur_from_key)))]
+        cov, model = accepted_covariance(
+            self._motion_cov.relative(est, key.levels[0], key.plane, self._plane.reported_covariance,
+                                      self._cur_from_key_prev, prev_from_cur),
+            jumps + [half for half, _ in spread], None if reanchor else self._handed_over,
+            self._gap_variance, prev_from_cur)
         self._handed_over, self._gap_variance = None, np.zeros(6)
         motion = motion_change(prev_from_cur, np.eye(4))
         if not refuted:
@@ -338,7 +316,6 @@ class Odometry:
         self._gain, self._bias = nxt.gain, nxt.bias
         self._recent_msd.append(robust_msd(est))
         self._lost_run, self._gap_steps = 0, []
-        gap = None if closing is None else GapClosure(self._good.index, *closing)
         self._good = GoodFrame(index, image, world_from_cur, cur_from_key)
         if self._key_msd is None:
             self._key_msd = robust_msd(est)
@@ -369,12 +346,8 @@ class Odometry:
         std = self._prediction_std(motion_change(cur_from_key, predicted))
         self._gap_variance = self._gap_variance + std ** 2
         self._gap_steps.append(std ** 2)
-        msd = est.msd if est is not None and np.isfinite(est.msd) else 0.0
-        its = est.iterations if est is not None else 0
-        pts = est.points if est is not None else 0
-        return FrameResult(index, timestamp, world_from_cur, prev_from_cur, msd, its, pts,
-                           FrameStatus.LOST, std, np.diag(std ** 2), self._key.index,
-                           self._gain, self._bias, reason)
+        return lost_row(index, timestamp, world_from_cur, prev_from_cur, std, est, self._key.index,
+                        (self._gain, self._bias), reason)
 
     def _prediction_std(self, bridged: np.ndarray, lost_run: int | None = None) -> np.ndarray:
         """(6,) m and rad: the std of a lost frame's motion (:func:`frame_std.prediction_std`);
@@ -392,7 +365,6 @@ class Odometry:
             return np.zeros(6)
         return unforeseen(motion - self._last_motion, std, self._prediction_std(np.zeros(6), 1))
 
-    # -- checks -----------------------------------------------------------------------
     def _checks(self) -> FitChecks:
         """The current frame's search (:class:`~monovo_cli.core.checks.FitChecks`)."""
         return FitChecks(self.options, self.camera, self._sigma, self._failure)
@@ -407,15 +379,10 @@ class Odometry:
         the top level if level 2's fails (``est``, fitted over the old plane, can be far off)."""
         found = self._plane.test(index, self._key, self._key_image, pyr, est, self.camera,
                                  self.region, self.options, self.mask)
-        if found is None:
+        new = None if found is None else self._checks().refit(found[0], pyr, found[1], est)
+        if new is None:
             return est
-        key, new, cov = found
-        if self._failure(new, key):
-            new = estimate_motion(key.levels, pyr, est.cur_from_key, options=self.options.estimator,
-                                  gain=est.gain, bias=est.bias)
-            if self._failure(new, key):
-                return est
-        self._key, self._plane.covariance = key, cov
+        self._key, self._plane.covariance = found[0], found[2]
         return new
 
     def _reanchor(self, index: int, image: np.ndarray, pyr: list[np.ndarray],
@@ -444,21 +411,20 @@ class Odometry:
         return True
 
     def _motion_to(self, key: Keyframe, cur_from_key: np.ndarray) -> np.ndarray:
-        """The motion (4x4, T_{k-1}_k) from the previous pose to the pose ``cur_from_key``
-        (4x4, orthonormal) against ``key``: an alternative fit's, beside the frame's own."""
+        """The motion (4x4, T_{k-1}_k) from the previous pose to ``cur_from_key`` (4x4) against
+        ``key``: an alternative fit's, beside the frame's own."""
         return se3_inv(self._world_from_prev) @ key.world_from_key @ se3_inv(cur_from_key)
 
     def _resolve_gap(self, index: int, image: np.ndarray, pyr: list[np.ndarray]
                      ) -> tuple[Keyframe, Estimate] | None:
         """Frame ``index`` (``image``, ``pyr``) measured directly from the last good frame
-        before the lost ones: against the keyframe if that frame is the keyframe, else
-        against a keyframe built on it (closer than the old one), starting from the
-        prediction, then with the capture's starts, its features matched against the last
-        good frame's image. ``(the keyframe, the estimate)`` if one passes the checks, else
-        None. Called before the frame is recorded lost (the prediction is still the next)."""
+        before the lost ones (:func:`~monovo_cli.core.recovery.reinit.resolve_gap`):
+        ``(the keyframe, the estimate)`` if one passes the checks, else None. Called before
+        the frame is recorded lost (the prediction is still the next)."""
         good = self._good
         chosen = None if good is None or not self.options.resolve_gaps else gap_reference(
-            good, self._key, self._predicted, (self._gain, self._bias), self._build_keyframe)
+            good, self._key, self._predicted, (self._gain, self._bias), lambda i, im, plane, w:
+            build_keyframe(i, im, self.camera, plane, self.region, w, self.options, mask=self.mask))
         if chosen is None:
             return None
         ref, predicted, brightness = chosen
@@ -469,56 +435,38 @@ class Odometry:
         finally:
             self._chance_msd = chance
 
-    def _build_keyframe(self, index: int, image: np.ndarray, plane: Plane,
-                        world_from_key: np.ndarray) -> Keyframe:
-        """A ground model anchored on frame ``index`` (``image``), ``plane`` in its camera."""
-        return build_keyframe(index, image, self.camera, plane, self.region, world_from_key,
-                              self.options, mask=self.mask)
-
     def _reinit(self, index: int, timestamp: float, image: np.ndarray, pyr: list[np.ndarray],
                 reason: str, resolved: tuple[Keyframe, Estimate] | None = None) -> FrameResult:
-        """Frames stay lost: anchor a fresh keyframe on this one at the predicted pose.
-
-        The plane is the current keyframe's carried to the prediction fused with the mounting
-        prior (:func:`~monovo_cli.core.recovery.reinit.predicted_twist`: after a few lost
-        frames the prediction's tilt is worth less than the mounting's), or the mount's plane
-        (relative to the camera) when that one does not meet the region's rays in front of
-        the camera; the gap since the last good frame is bridged by the prediction. A frame
-        that cannot carry a keyframe stays lost. ``resolved`` the gap already re-solved
-        (:meth:`_resolve_gap`; None: try it here), ``reason`` why the frame was not tracked
-        ("" for a frame that was, but is measured better from the last good frame)."""
+        """Frames stay lost: anchor a fresh keyframe on this one, at the predicted pose (the
+        gap since the last good frame bridged by the prediction) or at the gap re-solved
+        (:func:`~monovo_cli.core.recovery.reinit.fresh_start`); a frame that cannot carry a
+        keyframe stays lost. ``resolved`` the gap already re-solved (:meth:`_resolve_gap`;
+        None: try it here), ``reason`` why the frame was not tracked ("" for a frame that
+        was, but is measured better from the last good frame)."""
         lost_for, good = self._lost_run, self._good
         gap_before, world_from_prev = self._gap_variance.copy(), self._world_from_prev
         if resolved is None:
             resolved = self._resolve_gap(index, image, pyr)
         res = self._lost(index, timestamp, reason or "no keyframe could be anchored on it")
         variances = np.array(self._gap_steps)  # (this frame's predicted motion is the last)
-        world_from_cur, planes = res.world_from_cam, [self._plane.carried(
-            self._key.plane, self._cur_from_key_prev, predicted_twist(self._gap_variance), None)]
-        if resolved is not None:
-            ref, est = resolved
-            world_from_cur, carried, good_from_cur, cov = resolved_pose(
-                ref, est, self._key, good, self._motion_cov, self._plane)
-            planes = [carried]
-        for plane, plane_cov in planes + [(self._plane.mount_plane, None)]:
-            if plane_cov is not None:  # a frame after lost frames: its tilt is measured again
-                plane_cov = self._plane.loosened(plane_cov)
-            if self._reanchor(index, image, pyr, world_from_cur, plane, plane_cov):
-                self._lost_run, self._gap_steps = 0, []
-                self._gap_variance = np.zeros(6)  # the next motions are from this keyframe
-                self._handed_over = None  # (a re-initialised keyframe measured no model error)
-                self._recent_msd.clear()  # a fresh start: no msd history yet
-                self._world_from_prev = world_from_cur
-                self._good = GoodFrame(index, image, world_from_cur, np.eye(4))
-                words = f"re-initialised after {lost_for} lost frames" + (f" ({reason})" if reason else "")
-                if resolved is None:
-                    return replace(res, status=FrameStatus.REINIT, keyframe=self._key.index,
-                                   reason=words)
-                # the gap's mean motion per frame is the next prediction
-                self._velocity = se3_exp(-se3_log(good_from_cur) / (index - good.index))
-                return resolved_row(res, words, self._key.index, est, good, world_from_prev,
-                                    world_from_cur, cov, gap_before, variances)
-        return res
+        fresh = fresh_start(res, self._key, self._cur_from_key_prev, self._gap_variance, resolved,
+                            good, self._motion_cov, self._plane)
+        if not any(self._reanchor(index, image, pyr, fresh.world_from_cur, plane, plane_cov)
+                   for plane, plane_cov in fresh.planes):
+            return res
+        self._lost_run, self._gap_steps = 0, []
+        self._gap_variance = np.zeros(6)  # the next motions are from this keyframe
+        self._handed_over = None  # (a re-initialised keyframe measured no model error)
+        self._recent_msd.clear()  # a fresh start: no msd history yet
+        self._world_from_prev = fresh.world_from_cur
+        self._good = GoodFrame(index, image, fresh.world_from_cur, np.eye(4))
+        words = f"re-initialised after {lost_for} lost frames" + (f" ({reason})" if reason else "")
+        if resolved is None:
+            return replace(res, status=FrameStatus.REINIT, keyframe=self._key.index, reason=words)
+        # the gap's mean motion per frame is the next prediction
+        self._velocity = se3_exp(-se3_log(fresh.good_from_cur) / (index - good.index))
+        return resolved_row(res, words, self._key.index, resolved[1], good, world_from_prev,
+                            fresh.world_from_cur, fresh.covariance, gap_before, variances)
 
 
 def estimate_frames(frames: Iterable[tuple[int, float, np.ndarray | None]], camera: PinholeCamera,

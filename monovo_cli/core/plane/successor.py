@@ -41,12 +41,18 @@ class Successor:
 
 
 def successor(key: Keyframe, pyr: list[np.ndarray], est: Estimate, tracker: PlaneTracker,
-              motion_cov: MotionCovariance, options: TrackOptions, recovering: bool) -> Successor:
+              motion_cov: MotionCovariance, options: TrackOptions, recovering: bool, *,
+              anchoring: bool = True) -> Successor:
     """The keyframe the frame (``pyr``, ``est`` against ``key``) anchors: its terrain grid
     solved with the pose (``TrackOptions.terrain_grid``), then its plane; the pose keeps the
     fixed-plane estimate, whose error is smaller (the free normal adds variance to the joint
     solution's motion). ``recovering``: the frame follows lost frames, its plane's tilt is
-    loosened (:meth:`PlaneTracker.loosened`)."""
+    loosened (:meth:`PlaneTracker.loosened`). Not ``anchoring`` (a frame that anchors
+    nothing, or a recovering tracker's frame on its own keyframe): ``est`` as it is and
+    ``key``'s plane carried to it, its brightness the fit's."""
+    if not anchoring:
+        plane = key.plane.in_frame(orthonormalize(est.cur_from_key))
+        return Successor(est, plane, None, est.gain, est.bias, None)
     terrain_grid, rebuilt = None, None
     if options.terrain_grid:
         est, terrain_grid, lifted = refine_pose_and_terrain_grid(

@@ -1,11 +1,13 @@
-"""After frames are lost: the frame measured again from the last good one, and whether a frame
-may carry a fresh keyframe.
+"""After frames are lost: the frame measured again from the last good one, and the fresh
+keyframe a re-initialisation anchors.
 
 :func:`resolve_gap` measures a frame directly from the last frame the tracker trusted
 (:class:`GoodFrame`) before a run of lost ones (against :func:`gap_reference`),
 :func:`resolved_pose` turns that fit into the frame's pose, the plane a fresh keyframe on it
-starts from and its motion from the good frame, :func:`resolved_row` into the row it
-states; :func:`looks_usable` says whether a frame may carry a fresh keyframe at all.
+starts from and its motion from the good frame; :func:`fresh_start` gives where a fresh
+keyframe is anchored, with or without the re-solved gap, :func:`resolved_row` the row of a
+frame re-initialised on the re-solved gap, and :func:`looks_usable` says whether a frame
+may carry a fresh keyframe at all.
 :class:`~monovo_cli.core.odometry.Odometry` decides when (docs/algorithm.md section 8).
 """
 
@@ -112,6 +114,54 @@ def resolved_pose(ref: Keyframe, est: Estimate, key: Keyframe, good: GoodFrame,
     cov = motion_cov.relative(est, ref.levels[0], ref.plane, plane.reported_covariance,
                               good.cur_from_key if ref is key else np.eye(4), good_from_cur)
     return world_from_cur, carried, good_from_cur, cov
+
+
+@dataclass(frozen=True)
+class FreshStart:
+    """Where a re-initialisation anchors a fresh keyframe: ``world_from_cur`` (4x4) the frame's
+    pose, ``planes`` the planes to try in turn (in its camera, with their chart covariances,
+    None: the prior's); for a re-solved gap ``good_from_cur`` (4x4) the motion from the last
+    good frame and ``covariance`` (6, 6) its covariance (None: the gap bridged by the
+    prediction)."""
+
+    world_from_cur: np.ndarray
+    planes: list[tuple[Plane, np.ndarray | None]]
+    good_from_cur: np.ndarray | None = None
+    covariance: np.ndarray | None = None
+
+
+def fresh_start(lost: FrameResult, key: Keyframe, cur_from_key: np.ndarray,
+                gap_variance: np.ndarray, resolved: tuple[Keyframe, Estimate] | None,
+                good: GoodFrame, motion_cov: MotionCovariance, plane: PlaneTracker) -> FreshStart:
+    """Where frame ``lost`` (recorded lost at ``cur_from_key`` against ``key``, the lost
+    frames' predictions leaving ``gap_variance`` (6,)) is re-initialised: at the predicted
+    pose on ``key``'s plane carried there fused with the mounting prior (the prediction's
+    twist covariance :func:`predicted_twist`: after a few lost frames its tilt is worth less
+    than the mounting's, and a fresh keyframe on a plane tilted by the prediction's error
+    fits nothing), or at the pose ``resolved`` from ``good`` (:func:`resolved_pose`); the
+    mount's plane (relative to the camera) last, where that one does not meet the region's
+    rays in front of the camera. A covariance is loosened: the frame after lost ones
+    measures its tilt again (:meth:`PlaneTracker.loosened`)."""
+    if resolved is None:
+        fresh = FreshStart(lost.world_from_cam, [plane.carried(
+            key.plane, cur_from_key, predicted_twist(gap_variance), None)])
+    else:
+        world_from_cur, carried, good_from_cur, cov = resolved_pose(*resolved, key, good,
+                                                                    motion_cov, plane)
+        fresh = FreshStart(world_from_cur, [carried], good_from_cur, cov)
+    planes = [(p, None if c is None else plane.loosened(c))
+              for p, c in fresh.planes + [(plane.mount_plane, None)]]
+    return replace(fresh, planes=planes)
+
+
+def gap_closure(good: GoodFrame, key: Keyframe, predicted: np.ndarray, gap_steps: list[np.ndarray],
+                last_std: np.ndarray) -> GapClosure:
+    """What the lost frames since ``good`` leave for hindsight when the frame after them is
+    accepted: the pose the prediction would give it (``predicted``, ``cur_from_key`` against
+    ``key``) and the lost frames' predicted motions' variances (``gap_steps``, each (6,)),
+    the accepted frame's own (``last_std`` (6,), what a lost row would have stated) last."""
+    return GapClosure(good.index, orthonormalize(key.world_from_key @ se3_inv(predicted)),
+                      np.array(gap_steps + [last_std ** 2]))
 
 
 def predicted_twist(gap_variance: np.ndarray) -> np.ndarray:
