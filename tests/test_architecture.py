@@ -28,6 +28,8 @@ LAYERS = {
 }
 MAX_LINES = 400
 LONG_MARK = "Long module:"  # a module above MAX_LINES says why at its top, after this mark
+HARD_MAX_LINES = 500  # no module above this, whatever its reason: split it into rooms
+CONTRACT_FILE = "SPEC.md"  # the contract's file, outside the package: never named in it
 
 
 def _modules():
@@ -103,6 +105,25 @@ def test_long_modules_say_why():
             if (n := len(p.read_text().splitlines())) > MAX_LINES
             and LONG_MARK not in (ast.get_docstring(ast.parse(p.read_text())) or "")]
     assert not long, f"above {MAX_LINES} lines without '{LONG_MARK} <why>' in the docstring: {long}"
+
+
+def test_no_module_is_over_the_hard_limit():
+    """A reason lets a module pass MAX_LINES, never HARD_MAX_LINES: a longer one is split."""
+    long = [f"{m} ({n} lines)" for m, p in _modules()
+            if (n := len(p.read_text().splitlines())) > HARD_MAX_LINES]
+    assert not long, f"above {HARD_MAX_LINES} lines: {long}"
+
+
+def test_the_package_names_no_contract_file():
+    """The package names the contract by its content (the init.yaml convention, the CSV
+    columns), never by the file that holds it, which is not shipped with it."""
+    files = [p for p in PKG.rglob("*") if p.is_file() and "__pycache__" not in p.parts
+             and p.suffix not in (".pyc", ".pyo")]
+    assert any(p.suffix == ".py" for p in files), f"no modules under {PKG}"
+    bad = [f"{p.relative_to(PKG)}:{i}" for p in files
+           for i, line in enumerate(p.read_bytes().decode("utf-8", "replace").splitlines(), 1)
+           if CONTRACT_FILE in line]
+    assert not bad, f"{CONTRACT_FILE} named in: {bad}"
 
 
 def test_the_core_does_no_io_and_no_cli():

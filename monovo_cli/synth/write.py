@@ -157,7 +157,7 @@ def synthesize(out_dir: Path, *, preset: str = "drive", frames: int | None = Non
     turns in place, a 45 deg field of view pitched 45 deg, over ``terrain`` (default flat).
     With a terrain, init.yaml holds frame 0's ground (the body's plane at frame 0, its bob
     included, seen from the camera) and terrain.npz the true height field.
-    ``init_pose``: ``frame0`` (init.yaml holds frame 0's ground, the convention of SPEC.md) or
+    ``init_pose``: ``frame0`` (init.yaml holds frame 0's ground, the init.yaml convention) or
     ``nominal`` (the rover's nominal mount, declared with ``ground.nominal: true``; drives
     only).
     ``max_translation``: pairs -- per-axis translation bound, m (default 10);

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
@@ -79,6 +79,7 @@ from monovo_cli.core.plane.belief import (
 )
 from monovo_cli.core.plane.fit import refine_plane_and_motion
 from monovo_cli.core.plane.motion_covariance import TILT_MODEL_ERROR_DEG, PlaneCovarianceCalibration
+from monovo_cli.core.plane.mounting import InitialTilt, Mounting
 from monovo_cli.errors import TrackingError
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import orthonormalize, skew
@@ -87,50 +88,6 @@ from monovo_cli.geometry.plane import Plane, tangent_basis
 log = logging.getLogger(__name__)
 
 TILT_CHECK_FRAMES = 10  # frames of keyframe 0 on which init.yaml's tilt is measured at most
-
-
-@dataclass(frozen=True)
-class Mounting:
-    """What init.yaml says of the ground besides frame 0's plane.
-
-    ``sigma_distance`` (m) and ``sigma_deg``: how far the ground under the rover departs from
-    its mean mount (None: :func:`~monovo_cli.core.plane.belief.default_sigmas`); ``mount``
-    the declared nominal mount, a plane in the camera frame (None: the mean mount is latent,
-    estimated from the drive); ``initial_std`` ``(m, deg)`` the std of frame 0's plane (None:
-    exact; ``ground.nominal: true`` gives the prior's width).
-    """
-
-    sigma_distance: float | None = None
-    sigma_deg: float | None = None
-    mount: Plane | None = None
-    initial_std: tuple[float, float] | None = None
-
-    @classmethod
-    def nominal(cls, plane: Plane, sigma_distance: float | None = None,
-                sigma_deg: float | None = None) -> Mounting:
-        """``plane`` is the nominal mount (``ground.nominal: true``): frame 0's ground is
-        known only to the prior's width."""
-        sigmas = default_sigmas(plane, sigma_distance, sigma_deg)
-        return cls(sigma_distance, sigma_deg, mount=plane, initial_std=sigmas)
-
-
-@dataclass(frozen=True)
-class InitialTilt:
-    """init.yaml's tilt against the images': ``measured_deg`` (2,) the measured normal's tilt
-    angles in the chart of init.yaml's plane, ``std_deg`` (2,) their std, ``chi2`` the
-    contradiction's chi-square (2 dof), ``frame`` where measured, ``adopted`` whether the
-    measurement corrected the plane."""
-
-    measured_deg: tuple[float, float]
-    std_deg: tuple[float, float]
-    chi2: float
-    frame: int
-    adopted: bool
-
-    @property
-    def contradicts(self) -> bool:
-        """The images contradict init.yaml's tilt (chi-square above CONSISTENT_CHI2)."""
-        return self.chi2 >= CONSISTENT_CHI2
 
 
 class PlaneTracker:

@@ -1,0 +1,221 @@
+"""Whether a frame's fit can be trusted: the search beyond the prediction and the tests a fit
+must pass before the tracker accepts it.
+
+:func:`divergence` holds the divergence checks a fit must pass; :class:`FitChecks` what the
+search of one frame reads (the options, the frame's noise, the checks the tracker applies):
+the inlier score that ranks candidate fits, the frame's fit (:meth:`FitChecks.fit`) and the
+capture (:meth:`FitChecks.capture`) that tries the starts beyond the prediction's reach. The
+other functions test a frame before it is fitted (:func:`constant_or_invalid`), its step
+(:func:`step_too_large`) and whether it should anchor the next keyframe
+(:func:`needs_reanchor`); :class:`OdometryState` decides where a frame's fit starts.
+docs/algorithm.md section 4 gives the rules.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from enum import Enum
+from functools import partial
+
+import numpy as np
+
+from monovo_cli.core.estimator.estimate import Estimate, coarse_search, estimate_motion
+from monovo_cli.core.estimator.robust import inlier_fraction
+from monovo_cli.core.frame_std import robust_msd
+from monovo_cli.core.keyframe import Keyframe, footprint
+from monovo_cli.core.options import TrackOptions
+from monovo_cli.core.recovery.lost_frames import LostFrameRecovery
+from monovo_cli.geometry.camera import PinholeCamera
+from monovo_cli.geometry.lie import se3_inv, so3_log
+from monovo_cli.image.pyramid import extend_pyramid
+
+CHANCE_SHARE = 0.5  # a fit leaving half the keyframe's intensity variance is no fit
+
+
+class OdometryState(Enum):
+    """Where the tracker stands between frames: it decides the next frame's first guess."""
+
+    STARTING = "starting"      # no frame estimated yet: standing still is the prediction, and
+    #                            the rotation search gives the first guess
+    TRACKING = "tracking"      # the last accepted frame's motion (constant velocity) is the guess
+    RECOVERING = "recovering"  # a frame was lost: the rotation search gives the guess, and the
+    #                            next accepted frame anchors a new keyframe
+
+
+def divergence(est: Estimate, options: TrackOptions, sigma: float, chance_msd: float,
+               recent_msd: Sequence[float]) -> str:
+    """Why ``est`` cannot be trusted, or '' (the divergence checks): ``options`` the tracking
+    settings, ``sigma`` the noise sigma of the frame's differences (``difference_sigma``),
+    ``chance_msd`` the msd unrelated images would give (the keyframe points' intensity
+    variance), ``recent_msd`` the robust msd of the recent accepted frames."""
+    if not est.converged or not np.all(np.isfinite(est.cur_from_key)):
+        return "too few observation points in view"
+    if not np.all(np.isfinite(est.covariance)) or est.condition > options.max_condition:
+        return "ill-conditioned normal equations"
+    if score(est, sigma) < options.min_inliers:
+        return "intensity differences do not fit the motion"
+    if est.msd > CHANCE_SHARE * chance_msd:
+        return "intensity differences no better than chance"
+    # The fit of the bulk of the points (the robust msd: a region the robust weights reject,
+    # a reflection, a hand, does not count) against the recent good frames' (but at least
+    # the two images' noise): far above both, it does not hold. Before there are any the
+    # check does not apply: on real images the plane model's own error (lens, parallax,
+    # lighting) can exceed the noise many times over from frame 1 on.
+    if recent_msd:
+        noise = 2.0 * sigma ** 2
+        baseline = max(float(np.median(recent_msd)), noise, 1.0)
+        if robust_msd(est) > options.msd_factor * baseline:
+            return "robust mean squared difference rose sharply"
+    if est.finest_iterations >= options.estimator.max_iterations:
+        return "no convergence within the iteration cap"
+    return ""
+
+
+def score(est: Estimate, sigma: float) -> float:
+    """Share of the in-view points that agree with the estimate within the noise ``sigma``."""
+    if est.residuals is None:
+        return 0.0
+    return inlier_fraction(est.residuals, est.valid, sigma) / max(est.valid_fraction, 1e-9)
+
+
+@dataclass(frozen=True)
+class FitChecks:
+    """The search of one frame: ``options`` the tracking settings, ``camera`` the frames',
+    ``sigma`` the noise sigma of the frame's differences (``difference_sigma``), ``failure``
+    the checks a fit must pass (``failure(est, key)``: why the fit ``est`` against ``key``
+    cannot be trusted, or ''; the tracker's :func:`divergence`)."""
+
+    options: TrackOptions
+    camera: PinholeCamera
+    sigma: float
+    failure: Callable[[Estimate, Keyframe], str]
+
+    def search(self, key: Keyframe, pyr: list[np.ndarray], guess: np.ndarray,
+               gain: float, bias: float) -> np.ndarray:
+        """The rotation search around ``guess`` (4x4 ``cur_from_key``) at ``key``'s top level."""
+        top = len(key.levels) - 1  # (a pyramid built for another keyframe may differ in length)
+        return coarse_search(key.levels[top], extend_pyramid(pyr, top + 1)[top], guess,
+                             options=self.options.estimator,
+                             noise_sigma=self.sigma, gain=gain, bias=bias)
+
+    def score(self, est: Estimate) -> float:
+        """Share of the in-view points that agree with the estimate within the noise."""
+        return score(est, self.sigma)
+
+    def fit(self, index: int, key: Keyframe, image: np.ndarray, pyr: list[np.ndarray],
+            guess: np.ndarray, predicted: bool, standing: bool, *, prediction: np.ndarray,
+            recovery: LostFrameRecovery, brightness: tuple[float, float]
+            ) -> tuple[Estimate, str, bool, Estimate | None]:
+        """The frame (``image``, ``pyr``) fitted against ``key`` from ``guess`` (4x4
+        ``cur_from_key``) where that is a prediction (``predicted``: the estimator starts at
+        pyramid level ``TrackOptions.predicted_top_level``) or a standing start
+        (``standing``: "no motion yet", from the top), and with the capture's starts
+        (:meth:`capture`, 0.1 s) where it fails the checks or neither holds.
+        ``(est, reason, captured, from_prediction)``: the fit kept, why it fails ('' if it
+        passes), whether it came from the capture, and the fit from the prediction (failing
+        or not; None: there was none). ``prediction``, ``recovery``, ``brightness``:
+        :meth:`capture`'s."""
+        est, reason = None, ""
+        if predicted or standing:
+            est = estimate_motion(key.levels, pyr, guess, options=self.options.estimator,
+                                  gain=brightness[0], bias=brightness[1],
+                                  first_level=self.options.predicted_top_level if predicted else None)
+            reason = self.failure(est, key)
+        captured = est is None or bool(reason)
+        from_prediction = est if predicted else None
+        if captured:
+            est, reason = self.capture(index, key, image, pyr, guess, est, reason,
+                                       predicted=prediction, recovery=recovery, brightness=brightness)
+        return est, reason, captured, from_prediction
+
+    def refit(self, key: Keyframe, pyr: list[np.ndarray], new: Estimate, est: Estimate
+              ) -> Estimate | None:
+        """The fit ``new`` against ``key`` (a corrected plane's keyframe) if it passes the
+        checks, else the fit from ``est``'s pose from the top level if that one does
+        (``est``, fitted over the old plane, can be far off); None if neither passes."""
+        if self.failure(new, key):
+            new = estimate_motion(key.levels, pyr, est.cur_from_key, options=self.options.estimator,
+                                  gain=est.gain, bias=est.bias)
+            if self.failure(new, key):
+                return None
+        return new
+
+    def capture(self, index: int, key: Keyframe, image: np.ndarray, pyr: list[np.ndarray],
+                guess: np.ndarray, est: Estimate | None, reason: str, *, predicted: np.ndarray,
+                recovery: LostFrameRecovery, brightness: tuple[float, float]
+                ) -> tuple[Estimate, str]:
+        """The capture range beyond the prediction: the rotation search around ``guess`` and
+        the feature hypothesis each start the estimator from the top level, and while no
+        estimate passes the checks, the finer feature hypothesis
+        (``TrackOptions.fine_features``), then the same matched in the reference's view
+        warped by the prediction (:mod:`monovo_cli.core.recovery.predicted_view`), then the
+        finer one's settings at full resolution (frames larger than its level); the
+        estimate that passes the checks with the most inliers is kept (``est``, failing
+        with ``reason``, competes too).
+
+        ``predicted`` the predicted ``cur_from_key``, ``recovery`` whose reference the
+        features are matched against, ``brightness`` the starting gain and bias."""
+        gain, bias = brightness
+        starts: list[Callable[[], np.ndarray | None]] = [
+            lambda: self.search(key, pyr, guess, gain, bias)]
+        if self.options.feature_hypothesis:
+            starts += [partial(recovery.hypothesis, index, image, key.plane)]
+            fine = self.options.fine_features
+            if fine is not None:  # only while nothing before passed
+                starts += [partial(recovery.hypothesis, index, image, key.plane, options=fine),
+                           partial(recovery.hypothesis, index, image, key.plane, options=fine,
+                                   predicted=predicted)]
+                full = replace(fine, level=0)  # last, frames larger than fine's: full resolution
+                if full.level_for(self.camera) != fine.level_for(self.camera):
+                    starts += [partial(recovery.hypothesis, index, image, key.plane, options=full)]
+        for i, start in enumerate(starts):
+            if i >= 2 and not reason:
+                break
+            begin = start()
+            if begin is None:
+                continue
+            cand = estimate_motion(key.levels, pyr, begin, options=self.options.estimator,
+                                   gain=gain, bias=bias)
+            why = self.failure(cand, key)
+            if est is None or (not why, self.score(cand)) > (not reason, self.score(est)):
+                est, reason = cand, why
+        return est, reason
+
+
+def step_too_large(world_from_prev: np.ndarray, key: Keyframe, cur_from_key: np.ndarray,
+                   options: TrackOptions) -> str:
+    """Why the frame's step from the previous pose ``world_from_prev`` (4x4) to its pose
+    ``cur_from_key`` (4x4) against ``key`` is beyond ``options``' maximum step, or ''."""
+    o = options
+    if o.max_step_m is None and o.max_step_deg is None:
+        return ""
+    world_from_cur = key.world_from_key @ se3_inv(cur_from_key)
+    step = se3_inv(world_from_prev) @ world_from_cur
+    if o.max_step_m is not None and np.linalg.norm(step[:3, 3]) > o.max_step_m:
+        return f"step beyond the maximum step {o.max_step_m} m"
+    if o.max_step_deg is not None and \
+            np.degrees(np.linalg.norm(so3_log(step[:3, :3]))) > o.max_step_deg:
+        return f"step beyond the maximum step {o.max_step_deg} deg"
+    return ""
+
+
+def needs_reanchor(est: Estimate, key: Keyframe, cur_from_key: np.ndarray, camera: PinholeCamera,
+                   options: TrackOptions, key_msd: float | None) -> bool:
+    """Points leaving the view, the model leaving the image, or the fit degrading (its robust
+    msd against ``key_msd``, the first frame's fitted to ``key``; None: not yet measured)."""
+    corners_cur = key.corners @ cur_from_key[:3, :3].T + cur_from_key[:3, 3]
+    degraded = key_msd is not None and \
+        robust_msd(est) > options.reanchor_msd_ratio * max(key_msd, 1.0)
+    return (degraded or est.valid_fraction < options.reanchor_fraction
+            or footprint(camera, corners_cur) < options.min_footprint)
+
+
+def constant_or_invalid(image: np.ndarray) -> bool:
+    """``image`` holds a NaN or an infinity, or its std is below 1e-3 grey levels. Its extremes
+    say so in one pass (NaN and infinities show in them); the std, a fifth as fast, is taken
+    only where they allow it to be that small (a std is at least the range / sqrt(2 N))."""
+    lo, hi = float(image.min()), float(image.max())
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return True
+    return hi - lo < 1e-3 * np.sqrt(2.0 * image.size) and float(image.std()) < 1e-3
