@@ -26,7 +26,7 @@ from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.lie import orthonormalize, skew, so3_log
 
 PREDICTION_WINDOW = 30  # accepted frames whose motion changes measure the prediction's error
-STANDING_SHARE = 0.2  # a lost frame with no motion seen yet: std of each translation, x distance
+STANDING_SHARE = 0.5  # a lost frame's least std of each translation, x distance
 STANDING_DEG = 10.0  # ... and of each rotation, deg
 COVER = 4.0  # a row's error is to stay within this many of its std
 UNFORESEEN_COVER = 4.0  # a change from the prediction beyond this many std is not foreseen
@@ -82,6 +82,28 @@ def prediction_std(changes: Sequence[np.ndarray], last_motion: np.ndarray | None
         step = np.r_[np.full(3, STANDING_SHARE * distance), np.full(3, np.radians(STANDING_DEG))]
     spread = step * np.sqrt(lost_run)
     return np.sqrt(spread ** 2 + last_std ** 2 + bridged ** 2)
+
+
+def lost_std(predicted_std: np.ndarray, last_motion: np.ndarray | None,
+             distance: float) -> np.ndarray:
+    """(6,) m and rad: a lost row's std, the prediction's ``predicted_std`` (6,) but never
+    below what a frame the images said nothing of may hold: STANDING_SHARE of the ground's
+    ``distance`` (m) on each translation axis and STANDING_DEG on each rotation axis, or the
+    last accepted motion's size (``last_motion`` (6,): its translation's norm on each
+    translation axis, its rotation angle on each rotation axis) where that is larger.
+
+    A frame is lost where the images contradict the prediction or say nothing (blank,
+    corrupt). Either way the motion may have changed by more than it did in the recent
+    history: the rover stopped, began a turn in place, or stepped past the capture range.
+    The prediction is then off by up to a whole step, which the recent changes do not
+    measure. The next accepted row inherits this variance (its motion starts at the
+    prediction).
+    """
+    floor = np.r_[np.full(3, STANDING_SHARE * distance), np.full(3, np.radians(STANDING_DEG))]
+    if last_motion is not None:
+        floor = np.maximum(floor, np.r_[np.full(3, np.linalg.norm(last_motion[:3])),
+                                        np.full(3, np.linalg.norm(last_motion[3:]))])
+    return np.maximum(predicted_std, floor)
 
 
 def unforeseen(change: np.ndarray, std: np.ndarray, predicted_std: np.ndarray) -> np.ndarray:

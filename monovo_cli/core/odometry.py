@@ -54,6 +54,7 @@ from monovo_cli.core.frame_std import (
     accepted_covariance,
     from_predicted,
     lost_row,
+    lost_std,
     motion_change,
     prediction_std,
     refuted,
@@ -343,9 +344,10 @@ class Odometry:
         self._cur_from_key_prev = cur_from_key
         self._state = OdometryState.RECOVERING
         self._lost_run += 1
-        std = self._prediction_std(motion_change(cur_from_key, predicted))
+        predicted_std = self._prediction_std(motion_change(cur_from_key, predicted))
+        std = lost_std(predicted_std, self._last_motion, self._key.plane.distance)
         self._gap_variance = self._gap_variance + std ** 2
-        self._gap_steps.append(std ** 2)
+        self._gap_steps.append(predicted_std ** 2)  # (where the change likely fell: shares)
         return lost_row(index, timestamp, world_from_cur, prev_from_cur, std, est, self._key.index,
                         (self._gain, self._bias), reason)
 

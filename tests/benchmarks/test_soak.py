@@ -44,8 +44,6 @@ INDICES = _stratified(PER_CLASS)
 KNOWN: dict[int, str] = {
     6: "drift: two turns in place of ~22 deg/frame (45 deg field of view, 144 px) are lost and "
        "the re-initialisation after them leaves 0.21 m of end error on a 1.3 m arc (16 % > 10 %)",
-    9: "untrusted lost rows: steps of 1.7 m (past the capture range) are lost with a prediction "
-       "whose std (0.34 m) does not cover its 1.5-1.7 m error (4.6-5.1 std)",
     14: "untrusted ok rows: on low texture over rocks (96 px, noise 30) tracking converges to "
         "motions 5-165 deg off, written ok/reanchored with stds 4-24 times too small and an msd "
         "within the drive's level",

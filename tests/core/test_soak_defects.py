@@ -40,3 +40,41 @@ def test_a_gap_resolved_from_a_frame_with_more_pyramid_levels_than_the_keyframe(
         rows = list(csv.DictReader(f))
     assert [int(r["frame"]) for r in rows] == list(range(1, 30))
     assert any(r["status"] == "reinit" for r in rows)  # (the path that failed was taken)
+
+
+def _untrusted(seq, out, t_off=0.05, r_off_deg=1.0):
+    """The rows more than ``t_off`` m or ``r_off_deg`` deg off the truth whose std does not
+    cover the error within 4 std on every axis (the soak's integrity invariant)."""
+    axes = ["tx", "ty", "tz", "rx", "ry", "rz"]
+    with open(seq / "groundtruth_motion.csv", newline="") as f:
+        truth = {int(r["frame"]): r for r in csv.DictReader(f)}
+    with open(out / "motion.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    bad = []
+    for r in rows:
+        e = np.array([float(r[a]) - float(truth[int(r["frame"])][a]) for a in axes])
+        if np.linalg.norm(e[:3]) <= t_off and np.linalg.norm(e[3:]) <= r_off_deg:
+            continue
+        std = np.array([float(r["std_" + a]) for a in axes])
+        if not np.all(np.abs(e) <= 4 * std):
+            bad.append((int(r["frame"]), r["status"], np.round(e / std, 1).tolist()))
+    return rows, bad
+
+
+def test_an_unreadable_frame_where_a_turn_in_place_begins_states_a_whole_step(synth_drive,
+                                                                              tmp_path):
+    """A MER drive (0.6-0.75 m steps, turns in place) whose frame 7, the first of a turn in
+    place, is unreadable. Its lost row predicted another 0.7 m step with the std of the recent
+    steps' changes (about 0.1 m), and was off by the whole step, 5-6 of its std; the next row,
+    measured from that prediction, inherited the error. The lost row's std now covers a whole
+    step (the last accepted motion's size)."""
+    seq = synth_drive(preset="mer", frames=12, size=(256, 256), seed=3)
+    work = tmp_path / "seq"
+    shutil.copytree(seq, work)
+    (work / "frames" / sorted(p.name for p in (work / "frames").glob("*.png"))[7]).write_bytes(
+        b"not a png")
+    code, out = run("track", work, "-o", tmp_path / "out", "-q", "--skip-bad-frames")
+    assert code == 0, out
+    rows, bad = _untrusted(work, tmp_path / "out")
+    assert rows[6]["frame"] == "7" and rows[6]["status"] == "lost"
+    assert bad == []
