@@ -31,6 +31,7 @@ from monovo_cli.geometry.lie import se3_inv, so3_log
 from monovo_cli.image.pyramid import extend_pyramid
 
 CHANCE_SHARE = 0.5  # a fit leaving half the keyframe's intensity variance is no fit
+MAX_TILT_STEP_DEG = 30.0  # the most the ground's tilt seen from the camera turns in one frame
 
 
 class OdometryState(Enum):
@@ -186,12 +187,22 @@ class FitChecks:
 def step_too_large(world_from_prev: np.ndarray, key: Keyframe, cur_from_key: np.ndarray,
                    options: TrackOptions) -> str:
     """Why the frame's step from the previous pose ``world_from_prev`` (4x4) to its pose
-    ``cur_from_key`` (4x4) against ``key`` is beyond ``options``' maximum step, or ''."""
+    ``cur_from_key`` (4x4) against ``key`` is beyond ``options``' maximum step, or beyond
+    MAX_TILT_STEP_DEG of the ground's tilt, or ''.
+
+    The tilt bound holds whatever the options: a camera that sees the ground does not turn
+    its view of it by tens of degrees from one frame to the next (a rover's jerks on rocks
+    and a hand's turn at video rate stay well below), where a fit that converged to a wrong
+    minimum of the intensity differences on little or repetitive texture can, at a msd as
+    low as the right one's. Turning about the ground's normal (a rover's yaw) does not tilt
+    the view and is not bounded."""
     o = options
-    if o.max_step_m is None and o.max_step_deg is None:
-        return ""
     world_from_cur = key.world_from_key @ se3_inv(cur_from_key)
     step = se3_inv(world_from_prev) @ world_from_cur
+    normal = (se3_inv(world_from_prev) @ key.world_from_key)[:3, :3] @ key.plane.normal
+    tilt = np.degrees(np.arccos(np.clip(normal @ (step[:3, :3].T @ normal), -1.0, 1.0)))
+    if tilt > MAX_TILT_STEP_DEG:
+        return f"the ground's tilt changed by {tilt:.0f} deg in one frame"
     if o.max_step_m is not None and np.linalg.norm(step[:3, 3]) > o.max_step_m:
         return f"step beyond the maximum step {o.max_step_m} m"
     if o.max_step_deg is not None and \
