@@ -97,10 +97,9 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
                 click.echo(f"{r['sequence']}:\n{r['traceback']}", err=True)
     if failed:
         first = failed[0]
-        # Without -q each failure's error was logged above as it came: not again here.
-        error = f": {first['error']}" if verbosity.quiet else " (its error above)"
-        msg = with_flags(f"{len(failed)} of {n} sequence(s) failed, first {first['sequence']}"
-                         f"{error} (all in {s.summary_path})")
+        # Each failure's error was logged above as it came (a warning, -q too): not again.
+        msg = with_flags(f"{len(failed)} of {n} sequence(s) failed, first {first['sequence']} "
+                         f"(its error above; all in {s.summary_path})")
         if s.internal_errors:
             click.echo(f"Error: {msg}", err=True)
             raise click.exceptions.Exit(1)

@@ -174,11 +174,11 @@ def _silence_stdout() -> None:
 
 
 def log_level(verbosity: Verbosity) -> int:
-    """The ``monovo_cli`` loggers' level: INFO with -v, DEBUG with -vv, ERROR with -q, else
-    WARNING."""
+    """The ``monovo_cli`` loggers' level: INFO with -v, DEBUG with -vv, else WARNING (-q
+    too: it hides the progress and the summary, never a warning)."""
     if verbosity.verbose:
         return logging.DEBUG if verbosity.verbose >= 2 else logging.INFO
-    return logging.ERROR if verbosity.quiet else logging.WARNING
+    return logging.WARNING
 
 
 def common(f):

@@ -41,7 +41,7 @@ def _set_verbosity(ctx: click.Context, param: click.Parameter, value: bool | int
 def verbosity_options(f):
     """-q/--quiet and -v/--verbose, on the group and on every command (see :class:`Verbosity`)."""
     f = click.option("-q", "--quiet", is_flag=True, expose_value=False, callback=_set_verbosity,
-                     help="No progress bar, no summary.")(f)
+                     help="No progress bar, no summary; warnings and errors still print.")(f)
     return click.option("-v", "--verbose", count=True, default=None, expose_value=False,
                         callback=_set_verbosity,
                         help="Say what the run does (keyframes, the ground measured, timing) "

@@ -326,17 +326,19 @@ def test_resume_tracks_again_a_sequence_its_done_json_records_as_failed(noisy_ar
     assert (out / "noisy" / "motion.csv").stat().st_mtime_ns != before
 
 
-def test_a_failure_is_told_once_with_its_flags(noisy_archive, tmp_path):
-    """Without -q each failure's error is logged as it comes (with the command line's flags),
-    and the last line points at it instead of repeating it; with -q the last line holds it."""
+def test_a_failure_is_told_once_with_its_flags(noisy_archive, tmp_path, caplog):
+    """Each failure's error is logged as it comes (with the command line's flags), -q or not
+    (a warning), and the last line points at it instead of repeating it."""
     args = ["batch", str(noisy_archive), "-o", str(tmp_path / "o"), "--workers", "1",
             "--glob", "good", "--threshold", "1e9"]
     r = CliRunner().invoke(main, args)
     assert r.exit_code == 2, r.output
     assert r.output.count("only 0 observation points") == 1, r.output
     assert "lower --threshold" in r.output and "gradient threshold" not in r.output
-    assert "first good (its error above)" in r.output
+    assert "first good (its error above" in r.output
+    caplog.clear()
     r = CliRunner().invoke(main, [*args, "-q", "--overwrite"])
     assert r.exit_code == 2, r.output
-    assert r.output.count("only 0 observation points") == 1, r.output
-    assert "first good: " in r.output and "lower --threshold" in r.output
+    assert "first good (its error above" in r.output
+    warned = [m for m in caplog.messages if "only 0 observation points" in m]
+    assert len(warned) == 1 and "lower --threshold" in warned[0], caplog.messages
