@@ -30,3 +30,27 @@ def test_quiet_hides_progress_and_summary_but_not_warnings(monkeypatch, tmp_path
     assert r.output == ""  # no summary, no bar
     assert [rec.getMessage() for rec in caplog.records if rec.levelno == logging.WARNING] == [
         "gt.tum: matches only 60 of 80 frames"]
+
+
+def _option_help(command: str, option: str) -> str:
+    """The help of ``monovo command``'s ``option``, on one line."""
+    r = CliRunner().invoke(main, [command, "--help"], terminal_width=400)
+    assert r.exit_code == 0, r.output
+    lines = [line.strip() for line in r.output.splitlines()]
+    start = next(i for i, line in enumerate(lines) if line.startswith(option))
+    end = next((i for i in range(start + 1, len(lines)) if lines[i].startswith("-")), len(lines))
+    return " ".join(lines[start:end])
+
+
+def test_synth_frames_help_states_the_minimum_the_check_applies(tmp_path):
+    text = _option_help("synth", "--frames")
+    assert "x>=1" not in text and "at least 2" in text and "at least 1" in text, text
+    r = CliRunner().invoke(main, ["synth", str(tmp_path / "d"), "--frames", "1", "-q"])
+    assert r.exit_code == 2 and ">= 2" in r.output and len(r.output.splitlines()) == 1, r.output
+    r = CliRunner().invoke(main, ["synth", str(tmp_path / "p"), "--preset", "pairs", "--frames", "0",
+                                  "-q"])
+    assert r.exit_code == 2 and ">= 1" in r.output, r.output
+    r = CliRunner().invoke(main, ["synth", str(tmp_path / "p"), "--preset", "pairs", "--frames", "1",
+                                  "--size", "64x64", "-q"])
+    assert r.exit_code == 0, r.output
+    assert len(list((tmp_path / "p").rglob("*.png"))) == 2
