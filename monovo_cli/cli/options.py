@@ -301,10 +301,12 @@ _TRACK_OPTIONS = {
         metavar="M[,DEG]",
         help="Mark a frame lost when its motion exceeds this many metres (and degrees)."),
 }
-#: The options of the ground model and the estimator (init).
-MODEL = ("levels", "threshold", "max_points", "robust", "reanchor_fraction")
-#: ... and of the sequence loop (track, batch).
-LOOP = (*MODEL, "photometric", "terrain_grid", "keep_initial_tilt", "max_step")
+#: The options that shape the ground model, its observation points (init): what a model.npz
+#: holds and 'track --model' uses as it was built.
+MODEL = ("levels", "threshold", "max_points")
+#: ... and the choices of the tracking (track, batch), which a model does not hold.
+LOOP = (*MODEL, "robust", "reanchor_fraction", "photometric", "terrain_grid", "keep_initial_tilt",
+        "max_step")
 
 
 def track_options(names: tuple[str, ...]):

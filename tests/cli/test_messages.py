@@ -54,3 +54,19 @@ def test_synth_frames_help_states_the_minimum_the_check_applies(tmp_path):
                                   "--size", "64x64", "-q"])
     assert r.exit_code == 0, r.output
     assert len(list((tmp_path / "p").rglob("*.png"))) == 2
+
+
+def test_init_refuses_the_tracking_choices_a_model_does_not_hold(monkeypatch, tmp_path):
+    """A model holds frame 0's points (--levels, --threshold, --max-points); --robust and
+    --reanchor-fraction are choices of the tracking, which 'track --model' takes itself."""
+    def fake_init(*args, **kwargs):
+        raise AssertionError("init ran")
+
+    monkeypatch.setattr(track, "init_model", fake_init)
+    for args in (["--robust", "tukey"], ["--reanchor-fraction", "0.3"], ["--no-photometric"]):
+        r = CliRunner().invoke(main, ["init", "seq", "-o", str(tmp_path / "m.npz"), *args])
+        assert r.exit_code == 2, r.output
+        assert f"{args[0]} for init: it is a tracking choice" in r.output and "monovo track" in r.output
+    text = CliRunner().invoke(main, ["init", "--help"]).output
+    assert "--robust" not in text and "--reanchor-fraction" not in text
+    assert "--robust" in CliRunner().invoke(main, ["track", "--help"]).output
