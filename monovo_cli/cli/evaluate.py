@@ -30,15 +30,26 @@ def parse_segments(ctx, param, value):  # noqa: ARG001
     return tuple(sorted(set(lengths)))
 
 
+class _Align(click.Choice):
+    """--align's choices; a file name taken for one says that --align alone goes last."""
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, str) and value not in self.choices:
+            self.fail(f"expected none, se3 or sim3, got {value!r}; --align alone (se3) goes after "
+                      "the files: monovo eval EST GT --align", param, ctx)
+        return super().convert(value, param, ctx)
+
+
 @click.command(name="eval")
 @click.argument("estimate", type=click.Path(path_type=Path))
 @click.argument("groundtruth", type=click.Path(path_type=Path))
-@click.option("--align", type=click.Choice(["none", "se3", "sim3"]), is_flag=False,
-              flag_value="se3", default=None, metavar="[se3|sim3]",
+@click.option("--align", type=_Align(["none", "se3", "sim3"]), is_flag=False,
+              flag_value="se3", default=None, metavar="[none|se3|sim3]",
               help="Also give the ATE after aligning the estimate onto the truth (Umeyama): "
                    "se3 (rigid; --align alone), or sim3 (with scale, for an up-to-scale run; "
-                   "then every measure uses the scaled estimate). The APE, its plots and the "
-                   "trajectory plot use the aligned estimate. Give it after the files.")
+                   "then every measure uses the scaled estimate); none: no alignment, as "
+                   "without --align. The APE, its plots and the trajectory plot use the "
+                   "aligned estimate. Give it after the files.")
 @click.option("--max-dt", type=click.FloatRange(min=0.0, min_open=True), cls=LibraryDefault,
               default_text=lambda: "{} s, or half the median frame interval if less".format(
                   constant_default("monovo_cli.evaluation.metrics", "MAX_DT")()),

@@ -70,3 +70,28 @@ def test_init_refuses_the_tracking_choices_a_model_does_not_hold(monkeypatch, tm
     text = CliRunner().invoke(main, ["init", "--help"]).output
     assert "--robust" not in text and "--reanchor-fraction" not in text
     assert "--robust" in CliRunner().invoke(main, ["track", "--help"]).output
+
+
+def test_every_choice_option_shows_all_its_choices_in_help():
+    import re
+
+    import click
+
+    checked = 0
+    for name, command in main.commands.items():
+        ctx = click.Context(command, info_name=name)
+        for p in command.params:
+            if isinstance(p, click.Option) and isinstance(p.type, click.Choice):
+                shown = " ".join(p.get_help_record(ctx))
+                words = set(re.findall(r"[\w-]+", shown))
+                missing = [c for c in p.type.choices if c not in words]
+                assert not missing, f"monovo {name} {p.opts[0]}: help omits {missing}: {shown}"
+                checked += 1
+    assert checked >= 8
+
+
+def test_align_before_the_files_says_where_it_goes():
+    r = CliRunner().invoke(main, ["eval", "--align", "out", "gt.tum"])
+    assert r.exit_code == 2, r.output
+    assert "expected none, se3 or sim3, got 'out'; --align alone (se3) goes after the files" in \
+        r.output
