@@ -34,7 +34,7 @@ from monovo_cli.cli.options import (
 @click.option("--glob", "pattern", default=None, metavar="PATTERN",
               help="The sequences are the directories under ROOT matching PATTERN "
                    "(e.g. 'sol*/navcam', '**/left') [default: every folder holding frames/ "
-                   "and init.yaml].")
+                   "and init.yaml; one without init.yaml fails].")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help="Sequences tracked at once, one process each [default: the number of cores; "
                    "with --scheduler, the cluster's workers].")
@@ -61,6 +61,7 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
     \b
     Outputs as 'monovo track' in OUTROOT/<relative path>/, then done.json last;
     OUTROOT/summary.csv has a row per sequence (status ok / skipped / failed).
+    A folder holding frames/ but no init.yaml is named and counted failed.
     A failed sequence never stops the others. --prior and --covariance name a file
     inside each sequence folder / output folder; --mask is one PNG for all.
     Exit status (after finishing the rest): 0 all done; 1 some failed on an internal

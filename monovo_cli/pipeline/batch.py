@@ -38,6 +38,7 @@ from monovo_cli.pipeline.batch_job import (
     find_sequences,
     is_complete,
     limit_threads,
+    missing_init_yaml,
     recorded_failure,
     result,
     sequence_name,
@@ -291,7 +292,9 @@ def run_batch(root: str | Path, out_root: str | Path, options: JobOptions | None
               summary_every_s: float = 5.0) -> BatchSummary:
     """``monovo batch``: track every sequence under ``root`` into ``out_root/<relative path>``.
 
-    Sequences come from :func:`find_sequences` (``pattern``: a glob). Each is tracked by
+    Sequences come from :func:`find_sequences` (``pattern``: a glob); a folder holding
+    ``frames/`` but no ``init.yaml`` is logged and recorded as failed (bad input), not run.
+    Each is tracked by
     ``task`` (:func:`track_one`, or a function of the same signature) with ``options``
     (:class:`~monovo_cli.pipeline.batch_job.JobOptions`, None for the defaults; the tasks
     get the dataclass itself, pickled), on a local pool of ``workers`` spawned processes
@@ -343,7 +346,11 @@ def run_batch(root: str | Path, out_root: str | Path, options: JobOptions | None
         seq_dir, out_dir = (root / rel).resolve(), (out_root / rel).resolve()
         name = sequence_name(rel)
         res = result(seq_dir, out_dir, status="pending", worker="")
-        if resume:
+        missing = missing_init_yaml(seq_dir)
+        if missing is not None:  # failed here, no worker started for it
+            res = result(seq_dir, out_dir, error=missing, error_kind="input", worker="")
+            log.warning("%s: %s", name, missing)
+        elif resume:
             complete, why = is_complete(seq_dir, out_dir, opts)
             failure = recorded_failure(out_dir) if complete else None
             if complete and failure is None:

@@ -91,8 +91,9 @@ def find_sequences(root: Path, *, pattern: str | None = None,
                    exclude: Sequence[Path] = ()) -> list[Path]:
     """The sequences under ``root`` as paths relative to it, in natural order.
 
-    Without ``pattern``: every folder (``root`` itself included) holding ``frames/`` and
-    ``init.yaml``, and every video (by extension) and ROS bag beside an ``init.yaml`` (in a
+    Without ``pattern``: every folder (``root`` itself included) holding ``frames/`` (and
+    ``init.yaml``: one without is found too, so that the batch names it and counts it failed,
+    see :func:`missing_init_yaml`), and every video (by extension) and ROS bag beside an ``init.yaml`` (in a
     folder without ``frames/``); the search does not descend into a sequence, a bag, hidden
     folders or the folders in ``exclude`` (e.g. the output root when it lies inside ``root``);
     symbolic links to folders are followed (each real folder once). With ``pattern`` (a
@@ -135,7 +136,7 @@ def find_sequences(root: Path, *, pattern: str | None = None,
                 continue
             seen.add(real)
             here = Path(dirpath)
-            if is_sequence_folder(here):
+            if (here / FRAMES_SUBDIR).is_dir():  # with init.yaml, or without: named, failed
                 found.append(here.relative_to(root))
                 dirnames[:] = []  # a sequence's subfolders are its own data
                 continue
@@ -149,6 +150,16 @@ def find_sequences(root: Path, *, pattern: str | None = None,
     if not found:
         raise InputError(what)
     return sorted(set(found), key=_natural_parts)
+
+
+def missing_init_yaml(seq: Path) -> str | None:
+    """Why the sequence folder ``seq`` cannot be tracked when it holds ``frames/`` but no
+    ``init.yaml`` (the error of its summary row); None otherwise."""
+    seq = Path(seq)
+    if seq.is_dir() and (seq / FRAMES_SUBDIR).is_dir() and not (seq / INIT_FILE).is_file():
+        return (f"{seq}: holds {FRAMES_SUBDIR}/ but no {INIT_FILE}; write its camera and ground "
+                f"into {seq / INIT_FILE} to track it")
+    return None
 
 
 def sequence_name(rel: Path) -> str:

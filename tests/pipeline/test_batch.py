@@ -342,3 +342,19 @@ def test_a_failure_is_told_once_with_its_flags(noisy_archive, tmp_path, caplog):
     assert "first good (its error above" in r.output
     warned = [m for m in caplog.messages if "only 0 observation points" in m]
     assert len(warned) == 1 and "lower --threshold" in warned[0], caplog.messages
+
+
+def test_a_folder_with_frames_but_no_init_yaml_is_named_and_failed(tmp_path, caplog):
+    root = tmp_path / "archive"
+    (root / "sol1" / "frames").mkdir(parents=True)
+    (root / "sol1" / "frames" / "frame_000000.png").write_bytes(b"")
+    assert find_sequences(root) == [Path("sol1")]
+    s = run_batch(root, tmp_path / "out")  # no worker is started for it
+    assert [(r["sequence"], r["status"], r["error_kind"]) for r in s.results] == [
+        ("sol1", "failed", "input")]
+    assert "holds frames/ but no init.yaml" in s.results[0]["error"]
+    assert _summary(tmp_path / "out")["sol1"]["status"] == "failed"
+    r = CliRunner().invoke(main, ["batch", str(root), "-o", str(tmp_path / "o2")])
+    assert r.exit_code == 2, r.output
+    assert "1 of 1 sequence(s) failed, first sol1" in r.output
+    assert any("sol1" in m and "no init.yaml" in m for m in caplog.messages), caplog.messages
