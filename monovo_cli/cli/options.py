@@ -260,6 +260,14 @@ def build_track_options(values: dict[str | tuple[str, ...], Any]):
     return core_options.options_from_dict(core_options.TrackOptions, nested)
 
 
+def _max_step_default() -> str:
+    """--max-step's default in words: the TrackOptions limits, or no limit."""
+    metres, degrees = track_default("max_step_m"), track_default("max_step_deg")
+    if metres is None:
+        return "no limit"
+    return f"{metres:g}" + ("" if degrees is None else f",{degrees:g}")
+
+
 def _track_option(*decls: str, **attrs: Any):
     return click.option(*decls, cls=TrackOption, **attrs)
 
@@ -276,7 +284,8 @@ _TRACK_OPTIONS = {
     "max_points": _track_option(
         "--max-points", field="max_points", type=MaxPoints(), metavar="N|all",
         help="Cap on observation points at full resolution (the strongest gradients, spread "
-             "evenly); 'all': every pixel above the threshold.",
+             f"evenly), at least {track_default('min_points')} (a keyframe needs as many); "
+             "'all': every pixel above the threshold.",
         default_text=lambda: f"one per {track_default('pixels_per_point')} pixels"),
     "robust": _track_option(
         "--robust", field="estimator.robust", type=click.Choice(["huber", "tukey", "none"]),
@@ -298,7 +307,7 @@ _TRACK_OPTIONS = {
              "contradict it (the measured tilt is still logged at -v and kept in run.yaml)."),
     "max_step": _track_option(
         "--max-step", field=("max_step_m", "max_step_deg"), callback=parse_max_step,
-        metavar="M[,DEG]",
+        metavar="M[,DEG]", default_text=_max_step_default,
         help="Mark a frame lost when its motion exceeds this many metres (and degrees)."),
 }
 #: The options that shape the ground model, its observation points (init): what a model.npz

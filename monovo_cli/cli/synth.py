@@ -37,7 +37,9 @@ def _default(name: str):
 @click.option("--noise-var", type=click.FloatRange(min=0.0), cls=LibraryDefault,
               default_text=_default("noise_var"),
               help="Variance of the added Gaussian noise (grey levels^2).")
-@click.option("--seed", type=int, cls=LibraryDefault, default_text=_default("seed"))
+@click.option("--seed", type=int, cls=LibraryDefault, default_text=_default("seed"),
+              help="Seed of the random texture, motion and noise (0 or more): the same seed "
+                   "writes the same sequence.")
 @click.option("--texture", default=None, metavar="PNG|gravel",
               help="A photo to use as ground texture, or a built-in one: procedural [default] "
                    "or gravel.")

@@ -95,3 +95,23 @@ def test_align_before_the_files_says_where_it_goes():
     assert r.exit_code == 2, r.output
     assert "expected none, se3 or sim3, got 'out'; --align alone (se3) goes after the files" in \
         r.output
+
+
+def test_every_option_has_help():
+    import click
+
+    for name, command in main.commands.items():
+        for p in command.params:
+            if isinstance(p, click.Option) and p.name != "help":
+                assert (p.help or "").strip(), f"monovo {name} {p.opts[0]} has no help"
+
+
+def test_max_step_shows_its_default_and_max_points_its_minimum():
+    from monovo_cli.core.options import TrackOptions
+
+    assert TrackOptions().max_step_m is None  # the default the help states
+    for command in ("track", "batch"):
+        assert "[default: no limit]" in _option_help(command, "--max-step")
+        least = TrackOptions().min_points
+        assert f"at least {least}" in _option_help(command, "--max-points")
+    assert f"at least {TrackOptions().min_points}" in _option_help("init", "--max-points")
