@@ -7,6 +7,8 @@ from pathlib import Path
 import click
 
 from monovo_cli.cli.group import (
+    BATCH_FLAG_WORDS,
+    FLAG_WORDS,
     BadInput,
     common,
     flags_in_log,
@@ -83,7 +85,9 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
                      covariance=str(covariance) if covariance else None,
                      skip_bad_frames=skip_bad_frames, topic=topic, **given(smooth=smooth))
     # each failure's warning, above the bar, with the flags put in
-    with progress_bar(verbosity.quiet, "seq") as bar, flags_in_log("monovo_cli.pipeline.batch"):
+    words = (*BATCH_FLAG_WORDS, *FLAG_WORDS)
+    with progress_bar(verbosity.quiet, "seq") as bar, \
+            flags_in_log("monovo_cli.pipeline.batch", words):
         s = run_batch(root, out, job, pattern=pattern, workers=workers,
                       scheduler=scheduler, dask=use_dask, resume=resume, overwrite=overwrite,
                       log_level=log_level(verbosity), progress=bar)
@@ -100,7 +104,7 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
         first = failed[0]
         # Each failure's error was logged above as it came (a warning, -q too): not again.
         msg = with_flags(f"{len(failed)} of {n} sequence(s) failed, first {first['sequence']} "
-                         f"(its error above; all in {s.summary_path})")
+                         f"(its error above; all in {s.summary_path})", words)
         if s.internal_errors:
             click.echo(f"Error: {msg}", err=True)
             raise click.exceptions.Exit(1)

@@ -62,10 +62,19 @@ def _kept(ctx: click.Context) -> str:
     return ctx.meta.get(KEPT_ON_INTERRUPT, "the frames done so far are on disk")
 
 
-def with_flags(text: str) -> str:
+#: monovo batch's words where they differ from :data:`FLAG_WORDS` (tried first): a sequence
+#: stopped by a bad frame is redone by --resume, which keeps the complete ones.
+BATCH_FLAG_WORDS = (
+    ("rerun recording unreadable frames as lost and replacing these outputs",  # pipeline.tracking
+     "rerun the batch with --resume --skip-bad-frames to record bad frames as lost and go on"),
+)
+
+
+def with_flags(text: str, words: tuple[tuple[str, str], ...] = FLAG_WORDS) -> str:
     """``text``, a library message, with the settings it names by their meaning named by their
-    command-line flags instead (:data:`FLAG_WORDS`)."""
-    for library, command_line in FLAG_WORDS:
+    command-line flags instead (``words``: :data:`FLAG_WORDS`, or a command's own pairs
+    before them)."""
+    for library, command_line in words:
         text = text.replace(library, command_line)
     return text
 
@@ -73,16 +82,21 @@ def with_flags(text: str) -> str:
 class _FlagWords(logging.Filter):
     """Puts the flags into a library log record's message (:func:`with_flags`)."""
 
+    def __init__(self, words: tuple[tuple[str, str], ...]) -> None:
+        super().__init__()
+        self.words = words
+
     def filter(self, record: logging.LogRecord) -> bool:
-        record.msg, record.args = with_flags(record.getMessage()), None
+        record.msg, record.args = with_flags(record.getMessage(), self.words), None
         return True
 
 
 @contextmanager
-def flags_in_log(name: str) -> Iterator[None]:
+def flags_in_log(name: str, words: tuple[tuple[str, str], ...] = FLAG_WORDS) -> Iterator[None]:
     """While in the block, the records of the library logger ``name`` name settings by their
-    command-line flags (:func:`with_flags`), as the command's own error line does."""
-    logger, words = logging.getLogger(name), _FlagWords()
+    command-line flags (:func:`with_flags` with ``words``), as the command's own error line
+    does."""
+    logger, words = logging.getLogger(name), _FlagWords(words)
     logger.addFilter(words)
     try:
         yield

@@ -115,3 +115,25 @@ def test_max_step_shows_its_default_and_max_points_its_minimum():
         least = TrackOptions().min_points
         assert f"at least {least}" in _option_help(command, "--max-points")
     assert f"at least {TrackOptions().min_points}" in _option_help("init", "--max-points")
+
+
+def test_batch_advises_resume_with_skip_bad_frames_not_overwrite(monkeypatch, tmp_path, caplog):
+    """A bad frame's advice in a batch: --resume --skip-bad-frames redoes the failed sequence
+    and keeps the complete ones; --overwrite is more than needed (and excludes --resume)."""
+    import monovo_cli.pipeline.batch as batch
+
+    error = ("s1/frames/frame_000003.png: cannot read the image; rerun recording unreadable "
+             "frames as lost and replacing these outputs")
+
+    def fake_batch(root, out, options, **kw):
+        logging.getLogger("monovo_cli.pipeline.batch").warning("%s: %s", "s1", error)
+        failed = {"sequence": "s1", "status": "failed", "error": error, "error_kind": "input"}
+        return batch.BatchSummary([failed], 0.1, tmp_path / "summary.csv", "local", 1)
+
+    monkeypatch.setattr(batch, "run_batch", fake_batch)
+    r = CliRunner().invoke(main, ["batch", "root", "-o", str(tmp_path / "b"), "-q"])
+    assert r.exit_code == 2, r.output
+    [warned] = [m for m in caplog.messages if m.startswith("s1: ")]
+    assert warned.endswith("rerun the batch with --resume --skip-bad-frames to record bad "
+                           "frames as lost and go on"), warned
+    assert "--overwrite" not in warned
