@@ -11,7 +11,9 @@ from monovo_cli.cli.group import (
     FLAG_WORDS,
     BadInput,
     common,
+    continue_advice,
     flags_in_log,
+    kept_on_interrupt,
     log_level,
     progress_bar,
     with_flags,
@@ -80,6 +82,8 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
     if resume and overwrite:
         raise click.UsageError("--resume and --overwrite exclude each other: --resume keeps "
                                "the complete sequences, --overwrite redoes all")
+    kept_on_interrupt(f"the sequences done so far are in {out} (summary.csv lists the pending "
+                      f"ones); {continue_advice(resume, overwrite)}")
     job = JobOptions(track=options, mask=str(mask.resolve()) if mask else None,
                      prior=str(prior) if prior else None,
                      covariance=str(covariance) if covariance else None,

@@ -58,6 +58,15 @@ def kept_on_interrupt(what: str) -> None:
     click.get_current_context().meta[KEPT_ON_INTERRUPT] = what
 
 
+def continue_advice(resume: bool, overwrite: bool) -> str:
+    """How to continue an interrupted run of a command that takes --resume, given whether
+    it was run with --resume or --overwrite (which exclude each other)."""
+    if resume:
+        return "continue with the same command"
+    return "continue with the same command" + (", --resume in place of --overwrite" if overwrite
+                                               else " and --resume")
+
+
 def _kept(ctx: click.Context) -> str:
     return ctx.meta.get(KEPT_ON_INTERRUPT, "the frames done so far are on disk")
 

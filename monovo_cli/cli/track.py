@@ -6,7 +6,7 @@ from pathlib import Path
 
 import click
 
-from monovo_cli.cli.group import common, kept_on_interrupt, progress_bar
+from monovo_cli.cli.group import common, continue_advice, kept_on_interrupt, progress_bar
 from monovo_cli.cli.options import (
     LOOP,
     LibraryDefault,
@@ -81,12 +81,22 @@ def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, ski
     if to_stdout:
         kept_on_interrupt("the rows of the frames done so far went to stdout; no file was "
                           "written")
+    elif checkpoint_every != 0:  # (0: no checkpoint to continue from)
+        kept_on_interrupt(f"the frames done so far are in {out}; {continue_advice(resume, overwrite)}")
+
+    def say_resumed(frame: int, total: int) -> None:
+        if verbosity.quiet:
+            return
+        click.echo(f"monovo: resuming at frame {frame} of {total} from the checkpoint in {out}"
+                   if frame else f"monovo: no checkpoint in {out}; starting at frame 0 of {total}",
+                   err=True)
+
     with progress_bar(verbosity.quiet, "frame") as bar:
         s = track_sequence(seq, params, None if to_stdout else Path(out), options,
                            groundtruth=groundtruth, mask=mask, prior=prior, covariance=covariance,
                            model=model, overwrite=overwrite, skip_bad_frames=skip_bad_frames,
                            topic=topic, terrain_out=terrain_out, progress=bar,
-                           resume=resume,
+                           resume=resume, resumed=say_resumed,
                            **given(smooth=smooth, checkpoint_every=checkpoint_every,
                                    threads=threads))
     if s is None:

@@ -137,3 +137,53 @@ def test_batch_advises_resume_with_skip_bad_frames_not_overwrite(monkeypatch, tm
     assert warned.endswith("rerun the batch with --resume --skip-bad-frames to record bad "
                            "frames as lost and go on"), warned
     assert "--overwrite" not in warned
+
+
+def _interrupted(*args, **kwargs):
+    raise KeyboardInterrupt
+
+
+def test_ctrl_c_names_resume(monkeypatch, tmp_path):
+    import monovo_cli.pipeline.batch as batch
+
+    monkeypatch.setattr(track, "track_sequence", _interrupted)
+    monkeypatch.setattr(batch, "run_batch", _interrupted)
+    out = tmp_path / "o"
+    r = CliRunner().invoke(main, ["track", "seq", "-o", str(out)])
+    assert r.exit_code == 130, r.output
+    assert r.output.strip().splitlines()[-1] == (
+        f"monovo: interrupted; the frames done so far are in {out}; continue with the same "
+        "command and --resume")
+    r = CliRunner().invoke(main, ["track", "seq", "-o", str(out), "--checkpoint-every", "0"])
+    assert r.exit_code == 130 and "--resume" not in r.output, r.output  # nothing to continue
+    r = CliRunner().invoke(main, ["track", "seq", "-o", "-"])
+    assert r.exit_code == 130 and "--resume" not in r.output, r.output
+    r = CliRunner().invoke(main, ["batch", "root", "-o", str(out)])
+    assert r.exit_code == 130, r.output
+    assert "continue with the same command and --resume" in r.output
+
+
+def test_a_resumed_run_says_where_it_continues(small_drive, tmp_path):
+    from monovo_cli.core.options import TrackOptions
+
+    out = tmp_path / "out"
+
+    def stop_after_six(done, total):
+        if done == 6:
+            raise KeyboardInterrupt
+
+    try:
+        track.track_sequence(small_drive, None, out, TrackOptions(), checkpoint_every=4,
+                             progress=stop_after_six)
+    except KeyboardInterrupt:
+        pass
+    args = ["track", str(small_drive), "-o", str(out), "--checkpoint-every", "4", "--resume"]
+    r = CliRunner().invoke(main, args)
+    assert r.exit_code == 0, r.output
+    assert f"monovo: resuming at frame 4 of 10 from the checkpoint in {out}" in r.output
+    r = CliRunner().invoke(main, ["track", str(small_drive), "-o", str(tmp_path / "new"),
+                                  "--resume", "-q"])
+    assert r.exit_code == 0 and r.output == "", r.output  # -q: nothing but warnings
+    r = CliRunner().invoke(main, ["track", str(small_drive), "-o", str(tmp_path / "new2"),
+                                  "--resume"])
+    assert f"monovo: no checkpoint in {tmp_path / 'new2'}; starting at frame 0 of 10" in r.output
