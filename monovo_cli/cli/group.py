@@ -25,7 +25,9 @@ from monovo_cli.cli.options import BadInput, Verbosity, verbosity_options
 from monovo_cli.errors import MonovoError
 from monovo_cli.version import __version__
 
-log = logging.getLogger("monovo_cli")
+#: The library's root logger: its records go to stderr while a command runs (:func:`common`).
+LOGGER = "monovo_cli"
+log = logging.getLogger(LOGGER)
 
 # The library names a setting by what it means (its messages serve any caller); the command
 # line names it by its flag. Each pair is (the library's words, the command line's words),
@@ -207,23 +209,26 @@ def log_level(verbosity: Verbosity) -> int:
 def common(f):
     """-q/--quiet, -v/--verbose (see :class:`Verbosity`) and --config (see
     :mod:`~monovo_cli.cli.config`) on a command; while it runs,
-    the library logs to stderr at their level and SIGTERM stops it cleanly. The command
-    gets the :class:`Verbosity` as its first argument. The ``monovo_cli`` logger's level is
-    restored afterwards, so that a command run in-process (CliRunner) leaves no trace."""
+    the library logs to stderr at their level (a handler of the ``monovo_cli`` logger, on the
+    stderr of the moment) and SIGTERM stops it cleanly. The command gets the
+    :class:`Verbosity` as its first argument. The ``monovo_cli`` logger's level and handlers
+    are restored afterwards, so that a command run in-process (CliRunner) leaves no trace."""
 
     @functools.wraps(f)
     def command(*args, **kwargs):
         verbosity = click.get_current_context().ensure_object(Verbosity)
         level = log_level(verbosity)
-        logging.basicConfig(level=level, format="monovo: %(levelname)s: %(message)s",
-                            stream=sys.stderr)
-        logger = logging.getLogger("monovo_cli")
+        logger = logging.getLogger(LOGGER)
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("monovo: %(levelname)s: %(message)s"))
         saved = logger.level
         logger.setLevel(level)
+        logger.addHandler(handler)
         signal.signal(signal.SIGTERM, _on_sigterm)
         try:
             return f(verbosity, *args, **kwargs)
         finally:
+            logger.removeHandler(handler)
             logger.setLevel(saved)
 
     return config_option(verbosity_options(command))
@@ -250,18 +255,28 @@ class _Progress:
             self.bar.close()
 
 
+def _stderr_is_terminal() -> bool:
+    """Whether stderr is a terminal (a bar written to a file or a pipe is only noise)."""
+    try:
+        return sys.stderr.isatty()
+    except (AttributeError, ValueError):  # no stderr, or a closed one
+        return False
+
+
 @contextmanager
 def progress_bar(quiet: bool, unit: str) -> Iterator[_Progress]:
     """A ``progress(done, total)`` callback drawing a tqdm bar of ``unit`` on stderr (none
-    when ``quiet``), closed on the way out whatever happens; the library's log lines (-v)
-    are written above the bar, not through it."""
+    when ``quiet`` or when stderr is not a terminal), closed on the way out whatever
+    happens; the library's log lines (-v, warnings) are written above the bar by tqdm, not
+    through it."""
+    quiet = quiet or not _stderr_is_terminal()
     bar = _Progress(quiet, unit)
     if quiet:
         redirect = contextlib.nullcontext()
     else:
         from tqdm.contrib.logging import logging_redirect_tqdm
 
-        redirect = logging_redirect_tqdm()
+        redirect = logging_redirect_tqdm(loggers=[logging.getLogger(LOGGER)])
     try:
         with redirect:
             yield bar

@@ -27,7 +27,8 @@ def test_quiet_hides_progress_and_summary_but_not_warnings(monkeypatch, tmp_path
     caplog.set_level(logging.DEBUG)
     r = CliRunner().invoke(main, ["track", "seq", "-o", str(tmp_path / "o"), "-q"])
     assert r.exit_code == 0, r.output
-    assert r.output == ""  # no summary, no bar
+    # no summary, no bar; the warning on stderr
+    assert r.output == "monovo: WARNING: gt.tum: matches only 60 of 80 frames\n"
     assert [rec.getMessage() for rec in caplog.records if rec.levelno == logging.WARNING] == [
         "gt.tum: matches only 60 of 80 frames"]
 
@@ -187,3 +188,33 @@ def test_a_resumed_run_says_where_it_continues(small_drive, tmp_path):
     r = CliRunner().invoke(main, ["track", str(small_drive), "-o", str(tmp_path / "new2"),
                                   "--resume"])
     assert f"monovo: no checkpoint in {tmp_path / 'new2'}; starting at frame 0 of 10" in r.output
+
+
+def _fake_synthesize(out, *, progress=None, **kwargs):
+    progress(1, 2)
+    logging.getLogger("monovo_cli.synth.write").warning("a warning between two frames")
+    progress(2, 2)
+    return SimpleNamespace(sequences=1, frames_per_sequence=2)
+
+
+def test_no_progress_bar_when_stderr_is_not_a_terminal(monkeypatch, tmp_path):
+    import monovo_cli.synth.write as write
+
+    monkeypatch.setattr(write, "synthesize", _fake_synthesize)
+    r = CliRunner().invoke(main, ["synth", str(tmp_path / "s")])  # CliRunner: no terminal
+    assert r.exit_code == 0, r.output
+    assert "\r" not in r.output and "frame/s" not in r.output, repr(r.output)
+    assert r.output.endswith(f"wrote 1 sequence(s) of 2 frames to {tmp_path / 's'}\n")
+
+
+def test_on_a_terminal_log_lines_go_above_the_bar(monkeypatch, tmp_path):
+    import monovo_cli.cli.group as group
+    import monovo_cli.synth.write as write
+
+    monkeypatch.setattr(write, "synthesize", _fake_synthesize)
+    monkeypatch.setattr(group, "_stderr_is_terminal", lambda: True)
+    r = CliRunner().invoke(main, ["synth", str(tmp_path / "s")])
+    assert r.exit_code == 0, r.output
+    assert "0/2" in r.output, repr(r.output)  # the bar is drawn
+    # the warning is a whole line of its own: tqdm clears the bar's line, writes it, redraws
+    assert "\rmonovo: WARNING: a warning between two frames\n" in r.output, repr(r.output)
