@@ -70,14 +70,24 @@ def _raise_stop(signum, frame):  # noqa: ARG001
 
 def _init_worker(log_level: int) -> None:
     """Initializer of a local pool worker: one thread for BLAS/OpenMP/OpenCV (set before
-    numpy and OpenCV load), Ctrl-C left to the parent, SIGTERM unwinds cleanly."""
+    numpy and OpenCV load), Ctrl-C left to the parent, SIGTERM unwinds cleanly. The worker
+    writes no log line itself: track_one returns them and the parent logs them
+    (:func:`relog`), so that they never cut through the parent's progress bar."""
     for var in THREAD_VARIABLES:
         os.environ[var] = "1"
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _raise_stop)
-    logging.basicConfig(level=log_level, format="monovo: %(levelname)s: %(message)s")
+    logging.getLogger().addHandler(logging.NullHandler())  # (not logging's last resort)
     logging.getLogger("monovo_cli").setLevel(log_level)
     limit_threads()
+
+
+def relog(name: str, res: dict[str, Any]) -> None:
+    """Log, in this process, the lines a sequence's run logged where it ran (``res["log"]``
+    of :func:`track_one`: (level, logger name, message)), each after the sequence's
+    ``name``, through the logger that wrote it."""
+    for level, logger, message in res.get("log") or ():
+        logging.getLogger(logger).log(level, "%s: %s", name, message)
 
 
 def _pool_task(task: Callable[..., dict], seq_dir: str, out_dir: str, options: JobOptions,
@@ -378,6 +388,7 @@ def run_batch(root: str | Path, out_root: str | Path, options: JobOptions | None
         name = results[job.index]["sequence"]
         results[job.index] = {**res, "sequence": name}
         total_done[0] += 1
+        relog(name, res)
         if res["status"] == "failed":
             log.warning("%s: %s", name, res["error"])
         if progress is not None:

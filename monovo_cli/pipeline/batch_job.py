@@ -235,8 +235,36 @@ def result(seq_dir: Path, out_dir: Path, **fields: Any) -> dict[str, Any]:
     return base
 
 
+class _LogLines(logging.Handler):
+    """Keeps the ``monovo_cli`` log records of one sequence as (level, logger, message)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.lines: list[tuple[int, str, str]] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.lines.append((record.levelno, record.name, record.getMessage()))
+
+
 def track_one(seq_dir: str | Path, out_dir: str | Path, options: JobOptions | None = None, *,
               overwrite: bool = False, single_thread: bool = True) -> dict[str, Any]:
+    """Track one sequence into ``out_dir`` as ``monovo track SEQ -o OUT`` does; never raises
+    for a bad sequence (see :func:`_track_one`). The result's ``log`` holds the lines the
+    run logged (``monovo_cli`` loggers, at their level) as (level, logger name, message),
+    for the caller to show: a batch logs them in its own process, above its progress bar."""
+    lines = _LogLines()
+    logger = logging.getLogger("monovo_cli")
+    logger.addHandler(lines)
+    try:
+        res = _track_one(seq_dir, out_dir, options, overwrite=overwrite,
+                         single_thread=single_thread)
+    finally:
+        logger.removeHandler(lines)
+    return {**res, "log": lines.lines}
+
+
+def _track_one(seq_dir: str | Path, out_dir: str | Path, options: JobOptions | None = None, *,
+               overwrite: bool = False, single_thread: bool = True) -> dict[str, Any]:
     """Track one sequence into ``out_dir`` as ``monovo track SEQ -o OUT`` does; never raises
     for a bad sequence.
 

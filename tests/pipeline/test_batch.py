@@ -269,7 +269,8 @@ def test_internal_errors_exit_1(archive, tmp_path, monkeypatch):
 
     monkeypatch.setattr(batch, "run_batch", fake)
     r = CliRunner().invoke(main, ["batch", str(archive), "-o", str(tmp_path / "o"), "-q"])
-    assert r.exit_code == 1 and "1 of 1 sequence(s) failed, first x: internal error: boom" in r.output
+    # (run_batch logged the error as a warning when it came, -q or not)
+    assert r.exit_code == 1 and "1 of 1 sequence(s) failed, first x (its error above" in r.output
 
 
 @pytest.mark.parametrize("args, message", [
@@ -306,7 +307,7 @@ def test_a_mostly_lost_sequence_fails_on_data_with_status_3_on_every_rerun(noisy
         r = CliRunner().invoke(main, ["batch", str(noisy_archive), "-o", str(out), "-q",
                                       "--workers", "1", *extra])
         assert r.exit_code == 3, (extra, r.output)
-        assert "1 of 2 sequence(s) failed, first noisy: 7 of 7 frames lost" in r.output
+        assert "1 of 2 sequence(s) failed, first noisy (its error above" in r.output
         rows = _summary(out)
         assert rows["noisy"]["status"] == "failed", extra
         assert rows["noisy"]["error"] == "7 of 7 frames lost (more than half)", extra
@@ -331,17 +332,14 @@ def test_a_failure_is_told_once_with_its_flags(noisy_archive, tmp_path, caplog):
     (a warning), and the last line points at it instead of repeating it."""
     args = ["batch", str(noisy_archive), "-o", str(tmp_path / "o"), "--workers", "1",
             "--glob", "good", "--threshold", "1e9"]
-    r = CliRunner().invoke(main, args)
-    assert r.exit_code == 2, r.output
-    assert r.output.count("only 0 observation points") == 1, r.output
-    assert "lower --threshold" in r.output and "gradient threshold" not in r.output
-    assert "first good (its error above" in r.output
-    caplog.clear()
-    r = CliRunner().invoke(main, [*args, "-q", "--overwrite"])
-    assert r.exit_code == 2, r.output
-    assert "first good (its error above" in r.output
-    warned = [m for m in caplog.messages if "only 0 observation points" in m]
-    assert len(warned) == 1 and "lower --threshold" in warned[0], caplog.messages
+    for extra in ([], ["-q", "--overwrite"]):
+        caplog.clear()
+        r = CliRunner().invoke(main, [*args, *extra])
+        assert r.exit_code == 2, r.output
+        assert "first good (its error above" in r.output and "observation points" not in r.output
+        warned = [m for m in caplog.messages if "only 0 observation points" in m]
+        assert len(warned) == 1, caplog.messages
+        assert "lower --threshold" in warned[0] and "gradient threshold" not in warned[0]
 
 
 def test_a_folder_with_frames_but_no_init_yaml_is_named_and_failed(tmp_path, caplog):
@@ -358,3 +356,26 @@ def test_a_folder_with_frames_but_no_init_yaml_is_named_and_failed(tmp_path, cap
     assert r.exit_code == 2, r.output
     assert "1 of 1 sequence(s) failed, first sol1" in r.output
     assert any("sol1" in m and "no init.yaml" in m for m in caplog.messages), caplog.messages
+
+
+def test_a_sequence_s_log_lines_come_back_to_the_parent(monkeypatch, tmp_path, caplog):
+    """A worker's log lines travel back in its result and are logged by the parent, through
+    its handlers (above the progress bar), each with its sequence's name, instead of being
+    written by the worker onto the parent's terminal."""
+    import logging
+
+    import monovo_cli.pipeline.track as track
+
+    def fake_track(*args, **kwargs):
+        logging.getLogger("monovo_cli.pipeline.track").info("frame 1 lost: too far")
+        raise InputError("frame_000002.png: cannot read the image")
+
+    monkeypatch.setattr(track, "track_sequence", fake_track)
+    caplog.set_level(logging.INFO, logger="monovo_cli")
+    res = track_one(tmp_path / "seq", tmp_path / "o", single_thread=False)
+    assert res["status"] == "failed" and "cannot read" in res["error"]
+    assert res["log"] == [(logging.INFO, "monovo_cli.pipeline.track", "frame 1 lost: too far")]
+    caplog.clear()
+    batch.relog("sol1", res)
+    assert [(r.name, r.getMessage()) for r in caplog.records] == [
+        ("monovo_cli.pipeline.track", "sol1: frame 1 lost: too far")]
