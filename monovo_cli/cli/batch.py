@@ -20,12 +20,15 @@ from monovo_cli.cli.group import (
 )
 from monovo_cli.cli.options import (
     LOOP,
+    checkpoint_every_option,
     given,
     output_option,
     overwrite_option,
     side_inputs,
     skip_bad_frames_option,
     smooth_option,
+    terrain_out_option,
+    threads_option,
     topic_option,
     track_options,
 )
@@ -52,13 +55,19 @@ from monovo_cli.cli.options import (
                    "checks out); redo the others, failed ones included.")
 @overwrite_option("Redo every sequence, replacing its outputs.")
 @skip_bad_frames_option("the sequence fails")
+@terrain_out_option
+@checkpoint_every_option("Every N frames write each sequence's trajectory files and the state "
+                         "'monovo track --resume' continues it from (batch --resume redoes an "
+                         "unfinished sequence from frame 0)")
+@threads_option("1: each worker tracks one sequence on one core")
 @topic_option
 @side_inputs(batch=True)
 @smooth_option
 @track_options(LOOP)
 @common
 def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, overwrite,
-          skip_bad_frames, topic, mask, prior, covariance, smooth, options):
+          skip_bad_frames, terrain_out, checkpoint_every, threads, topic, mask, prior, covariance,
+          smooth, options):
     """Track every sequence under ROOT (each a folder holding frames/ and init.yaml,
     or a video or ROS bag beside an init.yaml).
 
@@ -87,7 +96,8 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
     job = JobOptions(track=options, mask=str(mask.resolve()) if mask else None,
                      prior=str(prior) if prior else None,
                      covariance=str(covariance) if covariance else None,
-                     skip_bad_frames=skip_bad_frames, topic=topic, **given(smooth=smooth))
+                     skip_bad_frames=skip_bad_frames, topic=topic, terrain_out=terrain_out,
+                     **given(smooth=smooth, threads=threads, checkpoint_every=checkpoint_every))
     # each failure's warning, above the bar, with the flags put in
     words = (*BATCH_FLAG_WORDS, *FLAG_WORDS)
     with progress_bar(verbosity.quiet, "seq") as bar, \

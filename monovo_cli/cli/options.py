@@ -344,6 +344,33 @@ smooth_option = click.option(
     help="Write trajectory.csv/.tum (and the terrain products) as the motions were streamed, "
          "without re-scaling them with the keyframe planes smoothed over the whole drive.")
 
+#: --terrain-out: the terrain products too (track, batch).
+terrain_out_option = click.option(
+    "--terrain-out", is_flag=True,
+    help="Also write what tracking learned of the ground (with -o DIR): terrain.ply "
+         "(the keyframes' points with intensity, world frame) and the driven strip's "
+         "heights above frame 0's ground, heightmap.png and heightmap.csv.")
+
+
+def checkpoint_every_option(help: str):
+    """--checkpoint-every N (track, batch), with what it writes in this command's words."""
+    return click.option(
+        "--checkpoint-every", type=click.IntRange(min=0), metavar="N", cls=LibraryDefault,
+        default_text=keyword_default("monovo_cli.pipeline.track", "track_sequence",
+                                     "checkpoint_every"),
+        help=f"{help}; 0: only at the end, no checkpoint.")
+
+
+def threads_option(default: str):
+    """--threads N, the threads of one run (track; batch: of each sequence's), ``default``
+    in words."""
+    return click.option(
+        "--threads", type=click.IntRange(min=1), metavar="N", cls=LibraryDefault,
+        default_text=lambda: default,
+        help="Threads for one run: from 2 on, frames are decoded on a thread of their own "
+             "while the one before is estimated. The outputs are the same bytes whatever N.")
+
+
 #: --mask: pixels never used (init, track, batch).
 mask_option = click.option("--mask", type=click.Path(path_type=Path), default=None,
                            help="PNG of the frame size; its non-zero pixels are never used.")

@@ -327,19 +327,18 @@ def test_resume_tracks_again_a_sequence_its_done_json_records_as_failed(noisy_ar
     assert (out / "noisy" / "motion.csv").stat().st_mtime_ns != before
 
 
-def test_a_failure_is_told_once_with_its_flags(noisy_archive, tmp_path, caplog):
+def test_a_failure_is_told_once_with_its_flags(noisy_archive, tmp_path):
     """Each failure's error is logged as it comes (with the command line's flags), -q or not
     (a warning), and the last line points at it instead of repeating it."""
     args = ["batch", str(noisy_archive), "-o", str(tmp_path / "o"), "--workers", "1",
             "--glob", "good", "--threshold", "1e9"]
     for extra in ([], ["-q", "--overwrite"]):
-        caplog.clear()
         r = CliRunner().invoke(main, [*args, *extra])
         assert r.exit_code == 2, r.output
-        assert "first good (its error above" in r.output and "observation points" not in r.output
-        warned = [m for m in caplog.messages if "only 0 observation points" in m]
-        assert len(warned) == 1, caplog.messages
-        assert "lower --threshold" in warned[0] and "gradient threshold" not in warned[0]
+        assert r.output.count("only 0 observation points") == 1, r.output
+        assert "monovo: WARNING: good: " in r.output and "lower --threshold" in r.output
+        assert "gradient threshold" not in r.output
+        assert "first good (its error above" in r.output
 
 
 def test_a_folder_with_frames_but_no_init_yaml_is_named_and_failed(tmp_path, caplog):
@@ -379,3 +378,40 @@ def test_a_sequence_s_log_lines_come_back_to_the_parent(monkeypatch, tmp_path, c
     batch.relog("sol1", res)
     assert [(r.name, r.getMessage()) for r in caplog.records] == [
         ("monovo_cli.pipeline.track", "sol1: frame 1 lost: too far")]
+
+
+def test_track_one_passes_terrain_out_threads_and_checkpoint_every(monkeypatch, tmp_path):
+    import monovo_cli.pipeline.track as track
+
+    seen = {}
+
+    def fake_track(*args, **kwargs):
+        seen.update(kwargs)
+        raise InputError("stop here")
+
+    monkeypatch.setattr(track, "track_sequence", fake_track)
+    track_one(tmp_path / "seq", tmp_path / "o", single_thread=False)
+    assert (seen["terrain_out"], seen["threads"]) == (False, 1) and "checkpoint_every" not in seen
+    job = JobOptions(terrain_out=True, threads=3, checkpoint_every=7)
+    track_one(tmp_path / "seq", tmp_path / "o", job, single_thread=False)
+    assert (seen["terrain_out"], seen["threads"], seen["checkpoint_every"]) == (True, 3, 7)
+
+
+def test_a_complete_sequence_stays_complete_whatever_the_threads_or_checkpoints():
+    """--threads and --checkpoint-every leave the outputs as they are, and a sequence that
+    finished has the same outputs with --skip-bad-frames: --resume keeps it. --terrain-out
+    adds outputs: it does not. A done.json from before these options were recorded is read
+    with their defaults."""
+    from dataclasses import asdict
+
+    from monovo_cli.pipeline.batch_job import same_job_options
+
+    recorded = asdict(JobOptions())
+    assert same_job_options(recorded, JobOptions(threads=4, checkpoint_every=0,
+                                                 skip_bad_frames=True))
+    assert not same_job_options(recorded, JobOptions(terrain_out=True))
+    assert not same_job_options(recorded, JobOptions(topic="/cam"))
+    older = {k: v for k, v in recorded.items() if k not in ("terrain_out", "threads",
+                                                             "checkpoint_every")}
+    assert same_job_options(older, JobOptions())
+    assert not same_job_options("garbage", JobOptions())
