@@ -27,7 +27,6 @@ from monovo_cli.version import __version__
 
 #: The library's root logger: its records go to stderr while a command runs (:func:`common`).
 LOGGER = "monovo_cli"
-log = logging.getLogger(LOGGER)
 
 # The library names a setting by what it means (its messages serve any caller); the command
 # line names it by its flag. Each pair is (the library's words, the command line's words),
@@ -138,7 +137,7 @@ class MonovoGroup(click.Group):
             return super().invoke(ctx)
         except MonovoError as exc:
             if _verbose(ctx) >= 2:
-                log.exception("details")
+                _details()
             raise BadInput(with_flags(str(exc))) from None
         except (click.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
@@ -158,7 +157,7 @@ class MonovoGroup(click.Group):
             if exc.errno not in _ENVIRONMENT_ERRNOS:
                 _internal_error(ctx, exc)
             if _verbose(ctx) >= 2:
-                log.exception("details")
+                _details()
             # A full disk, a read-only or failing device: the outputs cannot be written,
             # which the user can fix (exit 2), not a bug. No file name: a stream (motion.csv
             # or stdout), whose unflushed rest must not fail again at exit.
@@ -170,6 +169,14 @@ class MonovoGroup(click.Group):
             raise BadInput(f"{where}{exc.strerror}{hint}") from None
         except Exception as exc:
             _internal_error(ctx, exc)
+
+
+def _details() -> None:
+    """The traceback of the error being handled, on stderr (-vv), in the form of the log
+    lines (the command's log handler is gone by now)."""
+    import traceback
+
+    click.echo("monovo: ERROR: details\n" + traceback.format_exc().rstrip(), err=True)
 
 
 def _verbose(ctx: click.Context) -> int:
