@@ -55,7 +55,7 @@ from monovo_cli.cli.options import (
                    "checks out); redo the others, failed ones included.")
 @overwrite_option("Redo every sequence, replacing its outputs.")
 @skip_bad_frames_option("the sequence fails")
-@terrain_out_option
+@terrain_out_option("in each sequence's output folder")
 @checkpoint_every_option("Every N frames write each sequence's trajectory files and the state "
                          "'monovo track --resume' continues it from (batch --resume redoes an "
                          "unfinished sequence from frame 0)")

@@ -344,12 +344,13 @@ smooth_option = click.option(
     help="Write trajectory.csv/.tum (and the terrain products) as the motions were streamed, "
          "without re-scaling them with the keyframe planes smoothed over the whole drive.")
 
-#: --terrain-out: the terrain products too (track, batch).
-terrain_out_option = click.option(
-    "--terrain-out", is_flag=True,
-    help="Also write what tracking learned of the ground (with -o DIR): terrain.ply "
-         "(the keyframes' points with intensity, world frame) and the driven strip's "
-         "heights above frame 0's ground, heightmap.png and heightmap.csv.")
+def terrain_out_option(where: str):
+    """--terrain-out: the terrain products too (track, batch); ``where`` they are written."""
+    return click.option(
+        "--terrain-out", is_flag=True,
+        help=f"Also write what tracking learned of the ground ({where}): terrain.ply "
+             "(the keyframes' points with intensity, world frame) and the driven strip's "
+             "heights above frame 0's ground, heightmap.png and heightmap.csv.")
 
 
 def checkpoint_every_option(help: str):

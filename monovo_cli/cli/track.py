@@ -33,7 +33,7 @@ from monovo_cli.cli.options import (
               help="A TUM ground truth to draw beside the estimate in trajectory.png and to "
                    "evaluate the run against in report.html.")
 @skip_bad_frames_option("stop with an error, keeping the rows done")
-@terrain_out_option
+@terrain_out_option("with -o DIR")
 @checkpoint_every_option("Every N frames write the trajectory files and the state to continue "
                          "from with --resume (with -o DIR)")
 @click.option("--resume", is_flag=True,

@@ -1,7 +1,7 @@
 """What the command line tells a user: -q, the help of every option, the advice it gives.
 
-The library calls are replaced by fakes where the words are all that is checked, so these
-tests run in well under a second each.
+The library calls are replaced by fakes where the words are all that is checked; the resume
+test tracks a 10-frame drive.
 """
 
 from __future__ import annotations
