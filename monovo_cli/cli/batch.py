@@ -7,21 +7,28 @@ from pathlib import Path
 import click
 
 from monovo_cli.cli.group import (
+    BATCH_FLAG_WORDS,
+    FLAG_WORDS,
     BadInput,
     common,
+    continue_advice,
     flags_in_log,
+    kept_on_interrupt,
     log_level,
     progress_bar,
     with_flags,
 )
 from monovo_cli.cli.options import (
     LOOP,
+    checkpoint_every_option,
     given,
     output_option,
     overwrite_option,
     side_inputs,
     skip_bad_frames_option,
     smooth_option,
+    terrain_out_option,
+    threads_option,
     topic_option,
     track_options,
 )
@@ -34,7 +41,7 @@ from monovo_cli.cli.options import (
 @click.option("--glob", "pattern", default=None, metavar="PATTERN",
               help="The sequences are the directories under ROOT matching PATTERN "
                    "(e.g. 'sol*/navcam', '**/left') [default: every folder holding frames/ "
-                   "and init.yaml].")
+                   "and init.yaml; one without init.yaml fails].")
 @click.option("--workers", type=click.IntRange(min=1), default=None,
               help="Sequences tracked at once, one process each [default: the number of cores; "
                    "with --scheduler, the cluster's workers].")
@@ -48,19 +55,26 @@ from monovo_cli.cli.options import (
                    "checks out); redo the others, failed ones included.")
 @overwrite_option("Redo every sequence, replacing its outputs.")
 @skip_bad_frames_option("the sequence fails")
+@terrain_out_option("in each sequence's output folder")
+@checkpoint_every_option("Every N frames write each sequence's trajectory files and the state "
+                         "'monovo track --resume' continues it from (batch --resume redoes an "
+                         "unfinished sequence from frame 0)")
+@threads_option("1: each worker tracks one sequence on one core")
 @topic_option
 @side_inputs(batch=True)
 @smooth_option
 @track_options(LOOP)
 @common
 def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, overwrite,
-          skip_bad_frames, topic, mask, prior, covariance, smooth, options):
+          skip_bad_frames, terrain_out, checkpoint_every, threads, topic, mask, prior, covariance,
+          smooth, options):
     """Track every sequence under ROOT (each a folder holding frames/ and init.yaml,
     or a video or ROS bag beside an init.yaml).
 
     \b
     Outputs as 'monovo track' in OUTROOT/<relative path>/, then done.json last;
     OUTROOT/summary.csv has a row per sequence (status ok / skipped / failed).
+    A folder holding frames/ but no init.yaml is named and counted failed.
     A failed sequence never stops the others. --prior and --covariance name a file
     inside each sequence folder / output folder; --mask is one PNG for all.
     Exit status (after finishing the rest): 0 all done; 1 some failed on an internal
@@ -77,12 +91,17 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
     if resume and overwrite:
         raise click.UsageError("--resume and --overwrite exclude each other: --resume keeps "
                                "the complete sequences, --overwrite redoes all")
+    kept_on_interrupt(f"the sequences done so far are in {out} (summary.csv lists the pending "
+                      f"ones); {continue_advice(resume, overwrite)}")
     job = JobOptions(track=options, mask=str(mask.resolve()) if mask else None,
                      prior=str(prior) if prior else None,
                      covariance=str(covariance) if covariance else None,
-                     skip_bad_frames=skip_bad_frames, topic=topic, **given(smooth=smooth))
+                     skip_bad_frames=skip_bad_frames, topic=topic, terrain_out=terrain_out,
+                     **given(smooth=smooth, threads=threads, checkpoint_every=checkpoint_every))
     # each failure's warning, above the bar, with the flags put in
-    with progress_bar(verbosity.quiet, "seq") as bar, flags_in_log("monovo_cli.pipeline.batch"):
+    words = (*BATCH_FLAG_WORDS, *FLAG_WORDS)
+    with progress_bar(verbosity.quiet, "seq") as bar, \
+            flags_in_log("monovo_cli.pipeline.batch", words):
         s = run_batch(root, out, job, pattern=pattern, workers=workers,
                       scheduler=scheduler, dask=use_dask, resume=resume, overwrite=overwrite,
                       log_level=log_level(verbosity), progress=bar)
@@ -97,10 +116,9 @@ def batch(verbosity, root, out, pattern, workers, scheduler, use_dask, resume, o
                 click.echo(f"{r['sequence']}:\n{r['traceback']}", err=True)
     if failed:
         first = failed[0]
-        # Without -q each failure's error was logged above as it came: not again here.
-        error = f": {first['error']}" if verbosity.quiet else " (its error above)"
-        msg = with_flags(f"{len(failed)} of {n} sequence(s) failed, first {first['sequence']}"
-                         f"{error} (all in {s.summary_path})")
+        # Each failure's error was logged above as it came (a warning, -q too): not again.
+        msg = with_flags(f"{len(failed)} of {n} sequence(s) failed, first {first['sequence']} "
+                         f"(its error above; all in {s.summary_path})", words)
         if s.internal_errors:
             click.echo(f"Error: {msg}", err=True)
             raise click.exceptions.Exit(1)

@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from monovo_cli.cli.group import common, with_flags
-from monovo_cli.cli.options import LibraryDefault, constant_default
+from monovo_cli.cli.options import BadInput, LibraryDefault, constant_default, overwrite_option
 
 # monovo_cli.io.trajectories.FORMATS, written out so that the command line loads no numpy
 # (tests/cli/test_eval.py checks that the two agree)
@@ -30,15 +30,26 @@ def parse_segments(ctx, param, value):  # noqa: ARG001
     return tuple(sorted(set(lengths)))
 
 
+class _Align(click.Choice):
+    """--align's choices; a file name taken for one says that --align alone goes last."""
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, str) and value not in self.choices:
+            self.fail(f"expected none, se3 or sim3, got {value!r}; --align alone (se3) goes after "
+                      "the files: monovo eval EST GT --align", param, ctx)
+        return super().convert(value, param, ctx)
+
+
 @click.command(name="eval")
 @click.argument("estimate", type=click.Path(path_type=Path))
 @click.argument("groundtruth", type=click.Path(path_type=Path))
-@click.option("--align", type=click.Choice(["none", "se3", "sim3"]), is_flag=False,
-              flag_value="se3", default=None, metavar="[se3|sim3]",
+@click.option("--align", type=_Align(["none", "se3", "sim3"]), is_flag=False,
+              flag_value="se3", default=None, metavar="[none|se3|sim3]",
               help="Also give the ATE after aligning the estimate onto the truth (Umeyama): "
                    "se3 (rigid; --align alone), or sim3 (with scale, for an up-to-scale run; "
-                   "then every measure uses the scaled estimate). The APE, its plots and the "
-                   "trajectory plot use the aligned estimate. Give it after the files.")
+                   "then every measure uses the scaled estimate); none: no alignment, as "
+                   "without --align. The APE, its plots and the trajectory plot use the "
+                   "aligned estimate. Give it after the files.")
 @click.option("--max-dt", type=click.FloatRange(min=0.0, min_open=True), cls=LibraryDefault,
               default_text=lambda: "{} s, or half the median frame interval if less".format(
                   constant_default("monovo_cli.evaluation.metrics", "MAX_DT")()),
@@ -70,9 +81,10 @@ def parse_segments(ctx, param, value):  # noqa: ARG001
               metavar="[FILE]",
               help="Print every figure as JSON instead of the text (--json alone), or write "
                    "it to FILE beside the text.")
+@overwrite_option("Replace the --json FILE and the plots in --plots DIR if they exist.")
 @common
 def eval_(verbosity, estimate, groundtruth, align, max_dt, segments, partial, est_format,
-          gt_format, est_times, gt_times, plots_dir, json_out):
+          gt_format, est_times, gt_times, plots_dir, json_out, overwrite):
     """Every error measure of the trajectory ESTIMATE against GROUNDTRUTH.
 
     \b
@@ -91,14 +103,22 @@ def eval_(verbosity, estimate, groundtruth, align, max_dt, segments, partial, es
       monovo eval est_00.txt poses/00.txt --segments 100,200,400
       monovo eval out/trajectory.tum gps.tum --max-dt 0.05 --align sim3
     """
-    from monovo_cli.pipeline.evaluate import EvalOptions, run_eval
+    from monovo_cli.pipeline.evaluate import PLOT_NAMES, EvalOptions, run_eval
 
+    json_path = None if json_out in (None, "-") else Path(json_out)
+    if not overwrite:  # before the work: every output of monovo is refused if it exists
+        if json_path is not None and json_path.exists():
+            raise BadInput(f"{json_path}: already exists; use --overwrite or another --json FILE")
+        there = [n for n in PLOT_NAMES if plots_dir is not None and (plots_dir / n).exists()]
+        if there:
+            raise BadInput(f"{plots_dir}: already holds plots ({', '.join(there)}); use "
+                           "--overwrite or another --plots DIR")
     options = EvalOptions(align=align or "none", max_dt=max_dt, partial=partial,
                           est_format=est_format, gt_format=gt_format, est_times=est_times,
                           gt_times=gt_times,
                           **({"segments": segments} if segments is not None else {}))
     result = run_eval(estimate, groundtruth, options, plots_dir=plots_dir,
-                      json_path=None if json_out in (None, "-") else Path(json_out))
+                      json_path=json_path)
     if json_out == "-":
         import json
 

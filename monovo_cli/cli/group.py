@@ -25,7 +25,8 @@ from monovo_cli.cli.options import BadInput, Verbosity, verbosity_options
 from monovo_cli.errors import MonovoError
 from monovo_cli.version import __version__
 
-log = logging.getLogger("monovo_cli")
+#: The library's root logger: its records go to stderr while a command runs (:func:`common`).
+LOGGER = "monovo_cli"
 
 # The library names a setting by what it means (its messages serve any caller); the command
 # line names it by its flag. Each pair is (the library's words, the command line's words),
@@ -58,14 +59,32 @@ def kept_on_interrupt(what: str) -> None:
     click.get_current_context().meta[KEPT_ON_INTERRUPT] = what
 
 
+def continue_advice(resume: bool, overwrite: bool) -> str:
+    """How to continue an interrupted run of a command that takes --resume, given whether
+    it was run with --resume or --overwrite (which exclude each other)."""
+    if resume:
+        return "continue with the same command"
+    return "continue with the same command" + (", --resume in place of --overwrite" if overwrite
+                                               else " and --resume")
+
+
 def _kept(ctx: click.Context) -> str:
     return ctx.meta.get(KEPT_ON_INTERRUPT, "the frames done so far are on disk")
 
 
-def with_flags(text: str) -> str:
+#: monovo batch's words where they differ from :data:`FLAG_WORDS` (tried first): a sequence
+#: stopped by a bad frame is redone by --resume, which keeps the complete ones.
+BATCH_FLAG_WORDS = (
+    ("rerun recording unreadable frames as lost and replacing these outputs",  # pipeline.tracking
+     "rerun the batch with --resume --skip-bad-frames to record bad frames as lost and go on"),
+)
+
+
+def with_flags(text: str, words: tuple[tuple[str, str], ...] = FLAG_WORDS) -> str:
     """``text``, a library message, with the settings it names by their meaning named by their
-    command-line flags instead (:data:`FLAG_WORDS`)."""
-    for library, command_line in FLAG_WORDS:
+    command-line flags instead (``words``: :data:`FLAG_WORDS`, or a command's own pairs
+    before them)."""
+    for library, command_line in words:
         text = text.replace(library, command_line)
     return text
 
@@ -73,16 +92,21 @@ def with_flags(text: str) -> str:
 class _FlagWords(logging.Filter):
     """Puts the flags into a library log record's message (:func:`with_flags`)."""
 
+    def __init__(self, words: tuple[tuple[str, str], ...]) -> None:
+        super().__init__()
+        self.words = words
+
     def filter(self, record: logging.LogRecord) -> bool:
-        record.msg, record.args = with_flags(record.getMessage()), None
+        record.msg, record.args = with_flags(record.getMessage(), self.words), None
         return True
 
 
 @contextmanager
-def flags_in_log(name: str) -> Iterator[None]:
+def flags_in_log(name: str, words: tuple[tuple[str, str], ...] = FLAG_WORDS) -> Iterator[None]:
     """While in the block, the records of the library logger ``name`` name settings by their
-    command-line flags (:func:`with_flags`), as the command's own error line does."""
-    logger, words = logging.getLogger(name), _FlagWords()
+    command-line flags (:func:`with_flags` with ``words``), as the command's own error line
+    does."""
+    logger, words = logging.getLogger(name), _FlagWords(words)
     logger.addFilter(words)
     try:
         yield
@@ -113,7 +137,7 @@ class MonovoGroup(click.Group):
             return super().invoke(ctx)
         except MonovoError as exc:
             if _verbose(ctx) >= 2:
-                log.exception("details")
+                _details()
             raise BadInput(with_flags(str(exc))) from None
         except (click.ClickException, click.exceptions.Exit, click.exceptions.Abort):
             raise
@@ -133,7 +157,7 @@ class MonovoGroup(click.Group):
             if exc.errno not in _ENVIRONMENT_ERRNOS:
                 _internal_error(ctx, exc)
             if _verbose(ctx) >= 2:
-                log.exception("details")
+                _details()
             # A full disk, a read-only or failing device: the outputs cannot be written,
             # which the user can fix (exit 2), not a bug. No file name: a stream (motion.csv
             # or stdout), whose unflushed rest must not fail again at exit.
@@ -145,6 +169,14 @@ class MonovoGroup(click.Group):
             raise BadInput(f"{where}{exc.strerror}{hint}") from None
         except Exception as exc:
             _internal_error(ctx, exc)
+
+
+def _details() -> None:
+    """The traceback of the error being handled, on stderr (-vv), in the form of the log
+    lines (the command's log handler is gone by now)."""
+    import traceback
+
+    click.echo("monovo: ERROR: details\n" + traceback.format_exc().rstrip(), err=True)
 
 
 def _verbose(ctx: click.Context) -> int:
@@ -174,33 +206,36 @@ def _silence_stdout() -> None:
 
 
 def log_level(verbosity: Verbosity) -> int:
-    """The ``monovo_cli`` loggers' level: INFO with -v, DEBUG with -vv, ERROR with -q, else
-    WARNING."""
+    """The ``monovo_cli`` loggers' level: INFO with -v, DEBUG with -vv, else WARNING (-q
+    too: it hides the progress and the summary, never a warning)."""
     if verbosity.verbose:
         return logging.DEBUG if verbosity.verbose >= 2 else logging.INFO
-    return logging.ERROR if verbosity.quiet else logging.WARNING
+    return logging.WARNING
 
 
 def common(f):
     """-q/--quiet, -v/--verbose (see :class:`Verbosity`) and --config (see
     :mod:`~monovo_cli.cli.config`) on a command; while it runs,
-    the library logs to stderr at their level and SIGTERM stops it cleanly. The command
-    gets the :class:`Verbosity` as its first argument. The ``monovo_cli`` logger's level is
-    restored afterwards, so that a command run in-process (CliRunner) leaves no trace."""
+    the library logs to stderr at their level (a handler of the ``monovo_cli`` logger, on the
+    stderr of the moment) and SIGTERM stops it cleanly. The command gets the
+    :class:`Verbosity` as its first argument. The ``monovo_cli`` logger's level and handlers
+    are restored afterwards, so that a command run in-process (CliRunner) leaves no trace."""
 
     @functools.wraps(f)
     def command(*args, **kwargs):
         verbosity = click.get_current_context().ensure_object(Verbosity)
         level = log_level(verbosity)
-        logging.basicConfig(level=level, format="monovo: %(levelname)s: %(message)s",
-                            stream=sys.stderr)
-        logger = logging.getLogger("monovo_cli")
+        logger = logging.getLogger(LOGGER)
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("monovo: %(levelname)s: %(message)s"))
         saved = logger.level
         logger.setLevel(level)
+        logger.addHandler(handler)
         signal.signal(signal.SIGTERM, _on_sigterm)
         try:
             return f(verbosity, *args, **kwargs)
         finally:
+            logger.removeHandler(handler)
             logger.setLevel(saved)
 
     return config_option(verbosity_options(command))
@@ -227,18 +262,28 @@ class _Progress:
             self.bar.close()
 
 
+def _stderr_is_terminal() -> bool:
+    """Whether stderr is a terminal (a bar written to a file or a pipe is only noise)."""
+    try:
+        return sys.stderr.isatty()
+    except (AttributeError, ValueError):  # no stderr, or a closed one
+        return False
+
+
 @contextmanager
 def progress_bar(quiet: bool, unit: str) -> Iterator[_Progress]:
     """A ``progress(done, total)`` callback drawing a tqdm bar of ``unit`` on stderr (none
-    when ``quiet``), closed on the way out whatever happens; the library's log lines (-v)
-    are written above the bar, not through it."""
+    when ``quiet`` or when stderr is not a terminal), closed on the way out whatever
+    happens; the library's log lines (-v, warnings) are written above the bar by tqdm, not
+    through it."""
+    quiet = quiet or not _stderr_is_terminal()
     bar = _Progress(quiet, unit)
     if quiet:
         redirect = contextlib.nullcontext()
     else:
         from tqdm.contrib.logging import logging_redirect_tqdm
 
-        redirect = logging_redirect_tqdm()
+        redirect = logging_redirect_tqdm(loggers=[logging.getLogger(LOGGER)])
     try:
         with redirect:
             yield bar

@@ -7,6 +7,7 @@ import click
 from monovo_cli.cli.group import common
 from monovo_cli.cli.options import (
     MODEL,
+    TrackOption,
     mask_option,
     output_option,
     overwrite_option,
@@ -15,7 +16,25 @@ from monovo_cli.cli.options import (
 )
 
 
-@click.command()
+class _InitCommand(click.Command):
+    """Says of a tracking option given to init where it belongs, not only that init lacks it."""
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        try:
+            return super().parse_args(ctx, args)
+        except click.NoSuchOption as exc:
+            from monovo_cli.cli.track import track
+
+            if exc.option_name in {o for p in track.params if isinstance(p, TrackOption)
+                                   for o in p.opts}:
+                exc.message = (f"No such option {exc.option_name} for init: it is a tracking "
+                               "choice, which a model does not hold; give it to 'monovo track' "
+                               "(with --model too)")
+                exc.possibilities = None
+            raise
+
+
+@click.command(cls=_InitCommand)
 @sequence_inputs
 @output_option("The model file to write (model.npz).")
 @overwrite_option("Replace the model file if it exists.")

@@ -41,7 +41,7 @@ def _set_verbosity(ctx: click.Context, param: click.Parameter, value: bool | int
 def verbosity_options(f):
     """-q/--quiet and -v/--verbose, on the group and on every command (see :class:`Verbosity`)."""
     f = click.option("-q", "--quiet", is_flag=True, expose_value=False, callback=_set_verbosity,
-                     help="No progress bar, no summary.")(f)
+                     help="No progress bar, no summary; warnings and errors still print.")(f)
     return click.option("-v", "--verbose", count=True, default=None, expose_value=False,
                         callback=_set_verbosity,
                         help="Say what the run does (keyframes, the ground measured, timing) "
@@ -260,6 +260,14 @@ def build_track_options(values: dict[str | tuple[str, ...], Any]):
     return core_options.options_from_dict(core_options.TrackOptions, nested)
 
 
+def _max_step_default() -> str:
+    """--max-step's default in words: the TrackOptions limits, or no limit."""
+    metres, degrees = track_default("max_step_m"), track_default("max_step_deg")
+    if metres is None:
+        return "no limit"
+    return f"{metres:g}" + ("" if degrees is None else f",{degrees:g}")
+
+
 def _track_option(*decls: str, **attrs: Any):
     return click.option(*decls, cls=TrackOption, **attrs)
 
@@ -276,7 +284,8 @@ _TRACK_OPTIONS = {
     "max_points": _track_option(
         "--max-points", field="max_points", type=MaxPoints(), metavar="N|all",
         help="Cap on observation points at full resolution (the strongest gradients, spread "
-             "evenly); 'all': every pixel above the threshold.",
+             f"evenly), at least {track_default('min_points')} (a keyframe needs as many); "
+             "'all': every pixel above the threshold.",
         default_text=lambda: f"one per {track_default('pixels_per_point')} pixels"),
     "robust": _track_option(
         "--robust", field="estimator.robust", type=click.Choice(["huber", "tukey", "none"]),
@@ -298,13 +307,15 @@ _TRACK_OPTIONS = {
              "contradict it (the measured tilt is still logged at -v and kept in run.yaml)."),
     "max_step": _track_option(
         "--max-step", field=("max_step_m", "max_step_deg"), callback=parse_max_step,
-        metavar="M[,DEG]",
+        metavar="M[,DEG]", default_text=_max_step_default,
         help="Mark a frame lost when its motion exceeds this many metres (and degrees)."),
 }
-#: The options of the ground model and the estimator (init).
-MODEL = ("levels", "threshold", "max_points", "robust", "reanchor_fraction")
-#: ... and of the sequence loop (track, batch).
-LOOP = (*MODEL, "photometric", "terrain_grid", "keep_initial_tilt", "max_step")
+#: The options that shape the ground model, its observation points (init): what a model.npz
+#: holds and 'track --model' uses as it was built.
+MODEL = ("levels", "threshold", "max_points")
+#: ... and the choices of the tracking (track, batch), which a model does not hold.
+LOOP = (*MODEL, "robust", "reanchor_fraction", "photometric", "terrain_grid", "keep_initial_tilt",
+        "max_step")
 
 
 def track_options(names: tuple[str, ...]):
@@ -332,6 +343,34 @@ smooth_option = click.option(
     "--no-smooth", "smooth", cls=LibraryDefault, flag_value=False, default_text=lambda: None,
     help="Write trajectory.csv/.tum (and the terrain products) as the motions were streamed, "
          "without re-scaling them with the keyframe planes smoothed over the whole drive.")
+
+def terrain_out_option(where: str):
+    """--terrain-out: the terrain products too (track, batch); ``where`` they are written."""
+    return click.option(
+        "--terrain-out", is_flag=True,
+        help=f"Also write what tracking learned of the ground ({where}): terrain.ply "
+             "(the keyframes' points with intensity, world frame) and the driven strip's "
+             "heights above frame 0's ground, heightmap.png and heightmap.csv.")
+
+
+def checkpoint_every_option(help: str):
+    """--checkpoint-every N (track, batch), with what it writes in this command's words."""
+    return click.option(
+        "--checkpoint-every", type=click.IntRange(min=0), metavar="N", cls=LibraryDefault,
+        default_text=keyword_default("monovo_cli.pipeline.track", "track_sequence",
+                                     "checkpoint_every"),
+        help=f"{help}; 0: only at the end, no checkpoint.")
+
+
+def threads_option(default: str):
+    """--threads N, the threads of one run (track; batch: of each sequence's), ``default``
+    in words."""
+    return click.option(
+        "--threads", type=click.IntRange(min=1), metavar="N", cls=LibraryDefault,
+        default_text=lambda: default,
+        help="Threads for one run: from 2 on, frames are decoded on a thread of their own "
+             "while the one before is estimated. The outputs are the same bytes whatever N.")
+
 
 #: --mask: pixels never used (init, track, batch).
 mask_option = click.option("--mask", type=click.Path(path_type=Path), default=None,

@@ -31,7 +31,8 @@ from monovo_cli.cli.options import (
               help="Also draw the observation points, coloured by intensity residual "
                    "(green: within the noise, red: 3 sqrt(2) sigma and more).")
 @click.option("--fps", type=click.FloatRange(min=0.1, max=240.0), cls=LibraryDefault,
-              default_text=keyword_default("monovo_cli.pipeline.overlay", "overlay_sequence", "fps"))
+              default_text=keyword_default("monovo_cli.pipeline.overlay", "overlay_sequence", "fps"),
+              help="Frames per second of the MP4 or GIF.")
 @click.option("--scale", type=click.FloatRange(0.0, 1.0, min_open=True), cls=LibraryDefault,
               default_text=keyword_default("monovo_cli.pipeline.overlay", "overlay_sequence",
                                            "scale"),

@@ -26,8 +26,9 @@ def _default(name: str):
               default_text=_default("preset"),
               help="mer: MER-like 0.6-0.75 m steps and 12-18 deg turns in place, 45 deg field "
                    "of view, over --terrain.")
-@click.option("--frames", type=click.IntRange(min=1), default=None,
-              help="Frames of the drive, or number of pairs [default: 300 drive, 100 mer / pairs].")
+@click.option("--frames", type=int, default=None,
+              help="Frames of the drive (at least 2), or number of pairs (at least 1) "
+                   "[default: 300 drive, 100 mer / pairs].")
 @click.option("--size", callback=parse_size, default=None, metavar="WxH",
               help="Image size [default: 512x512 drive, 1024x1024 mer, 688x544 pairs].")
 @click.option("--terrain", type=click.Choice(["flat", "rolling", "slope", "rocks"]), default=None,
@@ -36,7 +37,9 @@ def _default(name: str):
 @click.option("--noise-var", type=click.FloatRange(min=0.0), cls=LibraryDefault,
               default_text=_default("noise_var"),
               help="Variance of the added Gaussian noise (grey levels^2).")
-@click.option("--seed", type=int, cls=LibraryDefault, default_text=_default("seed"))
+@click.option("--seed", type=int, cls=LibraryDefault, default_text=_default("seed"),
+              help="Seed of the random texture, motion and noise (0 or more): the same seed "
+                   "writes the same sequence.")
 @click.option("--texture", default=None, metavar="PNG|gravel",
               help="A photo to use as ground texture, or a built-in one: procedural [default] "
                    "or gravel.")

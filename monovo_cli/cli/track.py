@@ -6,18 +6,19 @@ from pathlib import Path
 
 import click
 
-from monovo_cli.cli.group import common, kept_on_interrupt, progress_bar
+from monovo_cli.cli.group import common, continue_advice, kept_on_interrupt, progress_bar
 from monovo_cli.cli.options import (
     LOOP,
-    LibraryDefault,
+    checkpoint_every_option,
     given,
-    keyword_default,
     output_option,
     overwrite_option,
     sequence_inputs,
     side_inputs,
     skip_bad_frames_option,
     smooth_option,
+    terrain_out_option,
+    threads_option,
     track_options,
 )
 
@@ -32,24 +33,14 @@ from monovo_cli.cli.options import (
               help="A TUM ground truth to draw beside the estimate in trajectory.png and to "
                    "evaluate the run against in report.html.")
 @skip_bad_frames_option("stop with an error, keeping the rows done")
-@click.option("--terrain-out", is_flag=True,
-              help="Also write what tracking learned of the ground (with -o DIR): terrain.ply "
-                   "(the keyframes' points with intensity, world frame) and the driven strip's "
-                   "heights above frame 0's ground, heightmap.png and heightmap.csv.")
-@click.option("--checkpoint-every", type=click.IntRange(min=0), metavar="N", cls=LibraryDefault,
-              default_text=keyword_default("monovo_cli.pipeline.track", "track_sequence",
-                                           "checkpoint_every"),
-              help="Every N frames write the trajectory files and the state to continue from "
-                   "with --resume (with -o DIR); 0: only at the end, no checkpoint.")
+@terrain_out_option("with -o DIR")
+@checkpoint_every_option("Every N frames write the trajectory files and the state to continue "
+                         "from with --resume (with -o DIR)")
 @click.option("--resume", is_flag=True,
               help="Continue the run interrupted in -o DIR from its last checkpoint, with the "
                    "same inputs and options; the outputs are those of an uninterrupted run. "
                    "Without a checkpoint, start from frame 0; a finished run is left as it is.")
-@click.option("--threads", type=click.IntRange(min=1), metavar="N", cls=LibraryDefault,
-              default_text=lambda: "all cores",
-              help="Threads for one run: from 2 on, frames are decoded on a thread of their "
-                   "own while the one before is estimated. The outputs are the same bytes "
-                   "whatever N.")
+@threads_option("all cores")
 @side_inputs()
 @smooth_option
 @track_options(LOOP)
@@ -81,12 +72,22 @@ def track(verbosity, seq, params, topic, out, model, overwrite, groundtruth, ski
     if to_stdout:
         kept_on_interrupt("the rows of the frames done so far went to stdout; no file was "
                           "written")
+    elif checkpoint_every != 0:  # (0: no checkpoint to continue from)
+        kept_on_interrupt(f"the frames done so far are in {out}; {continue_advice(resume, overwrite)}")
+
+    def say_resumed(frame: int, total: int) -> None:
+        if verbosity.quiet:
+            return
+        click.echo(f"monovo: resuming at frame {frame} of {total} from the checkpoint in {out}"
+                   if frame else f"monovo: no checkpoint in {out}; starting at frame 0 of {total}",
+                   err=True)
+
     with progress_bar(verbosity.quiet, "frame") as bar:
         s = track_sequence(seq, params, None if to_stdout else Path(out), options,
                            groundtruth=groundtruth, mask=mask, prior=prior, covariance=covariance,
                            model=model, overwrite=overwrite, skip_bad_frames=skip_bad_frames,
                            topic=topic, terrain_out=terrain_out, progress=bar,
-                           resume=resume,
+                           resume=resume, resumed=say_resumed,
                            **given(smooth=smooth, checkpoint_every=checkpoint_every,
                                    threads=threads))
     if s is None:

@@ -38,6 +38,7 @@ from monovo_cli.pipeline.batch_job import (
     find_sequences,
     is_complete,
     limit_threads,
+    missing_init_yaml,
     recorded_failure,
     result,
     sequence_name,
@@ -69,14 +70,24 @@ def _raise_stop(signum, frame):  # noqa: ARG001
 
 def _init_worker(log_level: int) -> None:
     """Initializer of a local pool worker: one thread for BLAS/OpenMP/OpenCV (set before
-    numpy and OpenCV load), Ctrl-C left to the parent, SIGTERM unwinds cleanly."""
+    numpy and OpenCV load), Ctrl-C left to the parent, SIGTERM unwinds cleanly. The worker
+    writes no log line itself: track_one returns them and the parent logs them
+    (:func:`relog`), so that they never cut through the parent's progress bar."""
     for var in THREAD_VARIABLES:
         os.environ[var] = "1"
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _raise_stop)
-    logging.basicConfig(level=log_level, format="monovo: %(levelname)s: %(message)s")
+    logging.getLogger().addHandler(logging.NullHandler())  # (not logging's last resort)
     logging.getLogger("monovo_cli").setLevel(log_level)
     limit_threads()
+
+
+def relog(name: str, res: dict[str, Any]) -> None:
+    """Log, in this process, the lines a sequence's run logged where it ran (``res["log"]``
+    of :func:`track_one`: (level, logger name, message)), each after the sequence's
+    ``name``, through the logger that wrote it."""
+    for level, logger, message in res.get("log") or ():
+        logging.getLogger(logger).log(level, "%s: %s", name, message)
 
 
 def _pool_task(task: Callable[..., dict], seq_dir: str, out_dir: str, options: JobOptions,
@@ -291,7 +302,9 @@ def run_batch(root: str | Path, out_root: str | Path, options: JobOptions | None
               summary_every_s: float = 5.0) -> BatchSummary:
     """``monovo batch``: track every sequence under ``root`` into ``out_root/<relative path>``.
 
-    Sequences come from :func:`find_sequences` (``pattern``: a glob). Each is tracked by
+    Sequences come from :func:`find_sequences` (``pattern``: a glob); a folder holding
+    ``frames/`` but no ``init.yaml`` is logged and recorded as failed (bad input), not run.
+    Each is tracked by
     ``task`` (:func:`track_one`, or a function of the same signature) with ``options``
     (:class:`~monovo_cli.pipeline.batch_job.JobOptions`, None for the defaults; the tasks
     get the dataclass itself, pickled), on a local pool of ``workers`` spawned processes
@@ -343,7 +356,11 @@ def run_batch(root: str | Path, out_root: str | Path, options: JobOptions | None
         seq_dir, out_dir = (root / rel).resolve(), (out_root / rel).resolve()
         name = sequence_name(rel)
         res = result(seq_dir, out_dir, status="pending", worker="")
-        if resume:
+        missing = missing_init_yaml(seq_dir)
+        if missing is not None:  # failed here, no worker started for it
+            res = result(seq_dir, out_dir, error=missing, error_kind="input", worker="")
+            log.warning("%s: %s", name, missing)
+        elif resume:
             complete, why = is_complete(seq_dir, out_dir, opts)
             failure = recorded_failure(out_dir) if complete else None
             if complete and failure is None:
@@ -371,6 +388,7 @@ def run_batch(root: str | Path, out_root: str | Path, options: JobOptions | None
         name = results[job.index]["sequence"]
         results[job.index] = {**res, "sequence": name}
         total_done[0] += 1
+        relog(name, res)
         if res["status"] == "failed":
             log.warning("%s: %s", name, res["error"])
         if progress is not None:

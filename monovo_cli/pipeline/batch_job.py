@@ -40,11 +40,15 @@ class JobOptions:
     PNG for every sequence (an absolute path); ``prior``, a motion CSV's path relative to
     each sequence folder; ``covariance``, a CSV's path relative to each output folder;
     ``skip_bad_frames``, as ``monovo track --skip-bad-frames``; ``topic``, the image topic
-    of the sequences that are ROS bags; ``smooth``, the trajectory re-scaled in hindsight
-    (as ``smooth`` of :func:`~monovo_cli.pipeline.track.track_sequence`).
+    of the sequences that are ROS bags; ``smooth``, the trajectory re-scaled in hindsight;
+    ``terrain_out``, the terrain products too; ``threads``, the threads of one sequence's
+    run; ``checkpoint_every``, its trajectory files and checkpoint every so many frames
+    (None: track's default) -- each as the argument of that name of
+    :func:`~monovo_cli.pipeline.track.track_sequence`.
 
     Travels to the workers as it is (a frozen dataclass pickles); ``done.json`` records it
-    as ``dataclasses.asdict``, a JSON-able dict, which :func:`is_complete` compares.
+    as ``dataclasses.asdict``, a JSON-able dict, which :func:`is_complete` compares (see
+    :func:`same_job_options`).
     """
 
     track: TrackOptions = field(default_factory=TrackOptions)
@@ -54,6 +58,26 @@ class JobOptions:
     skip_bad_frames: bool = False
     topic: str | None = None
     smooth: bool = True
+    terrain_out: bool = False
+    threads: int = 1
+    checkpoint_every: int | None = None
+
+
+#: JobOptions fields that leave a finished sequence's outputs as they are (the same bytes
+#: whatever the threads and checkpoints; a run that finished read every frame it needed):
+#: --resume keeps a complete sequence whatever their values.
+OUTPUT_NEUTRAL = ("skip_bad_frames", "threads", "checkpoint_every")
+
+
+def same_job_options(recorded: Any, options: JobOptions) -> bool:
+    """Whether ``recorded`` (``done.json``'s ``options``, a dict) is ``options`` in every
+    field that shapes the outputs (all but :data:`OUTPUT_NEUTRAL`); a field a done.json
+    written before it existed does not hold reads as its default."""
+    if not isinstance(recorded, dict):
+        return False
+    defaults, given = asdict(JobOptions()), asdict(options)
+    return all(recorded.get(k, defaults[k]) == given[k] for k in given if k not in OUTPUT_NEUTRAL) \
+        and set(recorded) <= set(given)
 
 
 # --------------------------------------------------------------------------- discovery
@@ -91,8 +115,9 @@ def find_sequences(root: Path, *, pattern: str | None = None,
                    exclude: Sequence[Path] = ()) -> list[Path]:
     """The sequences under ``root`` as paths relative to it, in natural order.
 
-    Without ``pattern``: every folder (``root`` itself included) holding ``frames/`` and
-    ``init.yaml``, and every video (by extension) and ROS bag beside an ``init.yaml`` (in a
+    Without ``pattern``: every folder (``root`` itself included) holding ``frames/`` (and
+    ``init.yaml``: one without is found too, so that the batch names it and counts it failed,
+    see :func:`missing_init_yaml`), and every video (by extension) and ROS bag beside an ``init.yaml`` (in a
     folder without ``frames/``); the search does not descend into a sequence, a bag, hidden
     folders or the folders in ``exclude`` (e.g. the output root when it lies inside ``root``);
     symbolic links to folders are followed (each real folder once). With ``pattern`` (a
@@ -135,7 +160,7 @@ def find_sequences(root: Path, *, pattern: str | None = None,
                 continue
             seen.add(real)
             here = Path(dirpath)
-            if is_sequence_folder(here):
+            if (here / FRAMES_SUBDIR).is_dir():  # with init.yaml, or without: named, failed
                 found.append(here.relative_to(root))
                 dirnames[:] = []  # a sequence's subfolders are its own data
                 continue
@@ -149,6 +174,16 @@ def find_sequences(root: Path, *, pattern: str | None = None,
     if not found:
         raise InputError(what)
     return sorted(set(found), key=_natural_parts)
+
+
+def missing_init_yaml(seq: Path) -> str | None:
+    """Why the sequence folder ``seq`` cannot be tracked when it holds ``frames/`` but no
+    ``init.yaml`` (the error of its summary row); None otherwise."""
+    seq = Path(seq)
+    if seq.is_dir() and (seq / FRAMES_SUBDIR).is_dir() and not (seq / INIT_FILE).is_file():
+        return (f"{seq}: holds {FRAMES_SUBDIR}/ but no {INIT_FILE}; write its camera and ground "
+                f"into {seq / INIT_FILE} to track it")
+    return None
 
 
 def sequence_name(rel: Path) -> str:
@@ -224,8 +259,36 @@ def result(seq_dir: Path, out_dir: Path, **fields: Any) -> dict[str, Any]:
     return base
 
 
+class _LogLines(logging.Handler):
+    """Keeps the ``monovo_cli`` log records of one sequence as (level, logger, message)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.lines: list[tuple[int, str, str]] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.lines.append((record.levelno, record.name, record.getMessage()))
+
+
 def track_one(seq_dir: str | Path, out_dir: str | Path, options: JobOptions | None = None, *,
               overwrite: bool = False, single_thread: bool = True) -> dict[str, Any]:
+    """Track one sequence into ``out_dir`` as ``monovo track SEQ -o OUT`` does; never raises
+    for a bad sequence (see :func:`_track_one`). The result's ``log`` holds the lines the
+    run logged (``monovo_cli`` loggers, at their level) as (level, logger name, message),
+    for the caller to show: a batch logs them in its own process, above its progress bar."""
+    lines = _LogLines()
+    logger = logging.getLogger("monovo_cli")
+    logger.addHandler(lines)
+    try:
+        res = _track_one(seq_dir, out_dir, options, overwrite=overwrite,
+                         single_thread=single_thread)
+    finally:
+        logger.removeHandler(lines)
+    return {**res, "log": lines.lines}
+
+
+def _track_one(seq_dir: str | Path, out_dir: str | Path, options: JobOptions | None = None, *,
+               overwrite: bool = False, single_thread: bool = True) -> dict[str, Any]:
     """Track one sequence into ``out_dir`` as ``monovo track SEQ -o OUT`` does; never raises
     for a bad sequence.
 
@@ -266,7 +329,9 @@ def track_one(seq_dir: str | Path, out_dir: str | Path, options: JobOptions | No
                 mask=Path(job.mask) if job.mask else None,
                 prior=_folder(seq_dir) / job.prior if job.prior else None,
                 covariance=out_dir / job.covariance if job.covariance else None, topic=job.topic,
-                smooth=job.smooth, threads=1)  # (one thread per worker)
+                smooth=job.smooth, terrain_out=job.terrain_out, threads=job.threads,
+                **({} if job.checkpoint_every is None else
+                   {"checkpoint_every": job.checkpoint_every}))
         n_frames, fingerprint = _input_fingerprint(seq_dir, job.prior, job.topic)
         if run.frames != n_frames:
             raise RuntimeError(f"{seq_dir}: {run.frames} frames tracked, expected {n_frames}")
@@ -302,7 +367,8 @@ def is_complete(seq_dir: str | Path, out_dir: str | Path,
     """Whether ``out_dir`` holds the finished results of ``seq_dir`` tracked with ``options``.
 
     Complete means: ``done.json`` (written by :func:`track_one` after every other output)
-    is there and readable; it was written for the same options (:class:`JobOptions`)
+    is there and readable; it was written for the same options (:class:`JobOptions`, but
+    for those that leave the outputs as they are, see :func:`same_job_options`)
     and the same inputs (number of frames; the names, sizes and modification times of the
     frame files, frame 0's file, times.txt, init.yaml and the prior); and every file it
     lists is there with the size and SHA-256 it recorded -- motion.csv with one row per
@@ -319,7 +385,7 @@ def is_complete(seq_dir: str | Path, out_dir: str | Path,
         marker = json.loads(done.read_text())
         if marker.get("format") != DONE_FORMAT:
             return False, f"{DONE_FILE} of another format ({marker.get('format')!r})"
-        if marker.get("options") != asdict(job):
+        if not same_job_options(marker.get("options"), job):
             return False, "tracked with other options"
         n_frames, fingerprint = _input_fingerprint(seq_dir, job.prior, job.topic)
         if (marker.get("frames"), marker.get("inputs_sha256")) != (n_frames, fingerprint):

@@ -150,7 +150,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
                    prior: Path | None = None, covariance: Path | None = None,
                    topic: str | None = None, terrain_out: bool = False, smooth: bool = True,
                    report: bool = True, resume: bool = False, threads: int | None = None,
-                   progress: Callable[[int, int], None] | None = None) -> TrackRun | None:
+                   progress: Callable[[int, int], None] | None = None,
+                   resumed: Callable[[int, int], None] | None = None) -> TrackRun | None:
     """``monovo track``: estimate every frame's motion and write motion.csv, trajectory.csv
     and trajectory.tum (docs/guide.md "File formats").
 
@@ -175,8 +176,10 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     files and the checkpoint are written (0: the trajectory at the end only, no
     checkpoint). ``resume`` (with an output directory): continue the run interrupted there
     from its checkpoint, or from frame 0 when it has none; an InputError when the
-    checkpoint was taken with other inputs or options. ``progress(done, total)`` is called
-    after every frame. Returns the run (:class:`~monovo_cli.core.run.TrackRun`), or None
+    checkpoint was taken with other inputs or options; ``resumed(frame, total)`` is then
+    called once before tracking, with the frame the run continues at (0: there was no
+    checkpoint) and the number of frames. ``progress(done, total)`` is called after every
+    frame. Returns the run (:class:`~monovo_cli.core.run.TrackRun`), or None
     when ``resume`` finds the run in ``out_dir`` finished (nothing to do). ``threads``: from 2
     on, frames are decoded on a thread of their own ahead of the tracker
     (:mod:`monovo_cli.pipeline.read_ahead`); None: all cores.
@@ -224,6 +227,8 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
         else:
             log.info("%s: continuing the run from frame %d", out_dir, saved.next_frame)
             stream = continue_stream(motion, saved.motion_bytes)
+        if resume and resumed is not None:
+            resumed(saved.next_frame if saved is not None else 0, len(frames))
     else:
         stream = sys.stdout
 

@@ -261,3 +261,15 @@ def test_verbose_says_what_a_healthy_run_does(small_drive, tmp_path):
     assert "DEBUG" not in r.output and "no BLAS library" not in r.output
     r = CliRunner().invoke(main, ["track", str(small_drive), "-o", str(tmp_path / "o2")])
     assert r.exit_code == 0 and "keyframe of" not in r.output
+
+
+def test_batch_passes_terrain_out_threads_and_checkpoint_every_on(calls, tmp_path):
+    _run("batch", "root", "-o", str(tmp_path / "b"))
+    job = calls["batch"][0]
+    assert (job.terrain_out, job.threads, job.checkpoint_every) == (False, 1, None)
+    _run("batch", "root", "-o", str(tmp_path / "b"), "--terrain-out", "--threads", "2",
+         "--checkpoint-every", "25")
+    job = calls["batch"][0]
+    assert (job.terrain_out, job.threads, job.checkpoint_every) == (True, 2, 25)
+    r = CliRunner().invoke(main, ["batch", "root", "-o", str(tmp_path / "b"), "--threads", "0"])
+    assert r.exit_code == 2 and "--threads" in r.output

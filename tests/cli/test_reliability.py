@@ -233,6 +233,7 @@ def test_bad_input_traceback_only_with_vv(base_seq, tmp_path):
     assert quiet.returncode == verbose.returncode == loud.returncode == 2
     assert verbose.stderr == quiet.stderr and len(quiet.stderr.strip().splitlines()) == 1
     assert "Traceback" not in quiet.stderr and "Traceback" in loud.stderr
+    assert "monovo: ERROR: details\nTraceback" in loud.stderr
     assert quiet.stderr.strip().splitlines()[-1] == loud.stderr.strip().splitlines()[-1]
 
 

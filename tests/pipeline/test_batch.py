@@ -269,7 +269,8 @@ def test_internal_errors_exit_1(archive, tmp_path, monkeypatch):
 
     monkeypatch.setattr(batch, "run_batch", fake)
     r = CliRunner().invoke(main, ["batch", str(archive), "-o", str(tmp_path / "o"), "-q"])
-    assert r.exit_code == 1 and "1 of 1 sequence(s) failed, first x: internal error: boom" in r.output
+    # (run_batch logged the error as a warning when it came, -q or not)
+    assert r.exit_code == 1 and "1 of 1 sequence(s) failed, first x (its error above" in r.output
 
 
 @pytest.mark.parametrize("args, message", [
@@ -306,7 +307,7 @@ def test_a_mostly_lost_sequence_fails_on_data_with_status_3_on_every_rerun(noisy
         r = CliRunner().invoke(main, ["batch", str(noisy_archive), "-o", str(out), "-q",
                                       "--workers", "1", *extra])
         assert r.exit_code == 3, (extra, r.output)
-        assert "1 of 2 sequence(s) failed, first noisy: 7 of 7 frames lost" in r.output
+        assert "1 of 2 sequence(s) failed, first noisy (its error above" in r.output
         rows = _summary(out)
         assert rows["noisy"]["status"] == "failed", extra
         assert rows["noisy"]["error"] == "7 of 7 frames lost (more than half)", extra
@@ -327,16 +328,90 @@ def test_resume_tracks_again_a_sequence_its_done_json_records_as_failed(noisy_ar
 
 
 def test_a_failure_is_told_once_with_its_flags(noisy_archive, tmp_path):
-    """Without -q each failure's error is logged as it comes (with the command line's flags),
-    and the last line points at it instead of repeating it; with -q the last line holds it."""
+    """Each failure's error is logged as it comes (with the command line's flags), -q or not
+    (a warning), and the last line points at it instead of repeating it."""
     args = ["batch", str(noisy_archive), "-o", str(tmp_path / "o"), "--workers", "1",
             "--glob", "good", "--threshold", "1e9"]
-    r = CliRunner().invoke(main, args)
+    for extra in ([], ["-q", "--overwrite"]):
+        r = CliRunner().invoke(main, [*args, *extra])
+        assert r.exit_code == 2, r.output
+        assert r.output.count("only 0 observation points") == 1, r.output
+        assert "monovo: WARNING: good: " in r.output and "lower --threshold" in r.output
+        assert "gradient threshold" not in r.output
+        assert "first good (its error above" in r.output
+
+
+def test_a_folder_with_frames_but_no_init_yaml_is_named_and_failed(tmp_path, caplog):
+    root = tmp_path / "archive"
+    (root / "sol1" / "frames").mkdir(parents=True)
+    (root / "sol1" / "frames" / "frame_000000.png").write_bytes(b"")
+    assert find_sequences(root) == [Path("sol1")]
+    s = run_batch(root, tmp_path / "out")  # no worker is started for it
+    assert [(r["sequence"], r["status"], r["error_kind"]) for r in s.results] == [
+        ("sol1", "failed", "input")]
+    assert "holds frames/ but no init.yaml" in s.results[0]["error"]
+    assert _summary(tmp_path / "out")["sol1"]["status"] == "failed"
+    r = CliRunner().invoke(main, ["batch", str(root), "-o", str(tmp_path / "o2")])
     assert r.exit_code == 2, r.output
-    assert r.output.count("only 0 observation points") == 1, r.output
-    assert "lower --threshold" in r.output and "gradient threshold" not in r.output
-    assert "first good (its error above)" in r.output
-    r = CliRunner().invoke(main, [*args, "-q", "--overwrite"])
-    assert r.exit_code == 2, r.output
-    assert r.output.count("only 0 observation points") == 1, r.output
-    assert "first good: " in r.output and "lower --threshold" in r.output
+    assert "1 of 1 sequence(s) failed, first sol1" in r.output
+    assert any("sol1" in m and "no init.yaml" in m for m in caplog.messages), caplog.messages
+
+
+def test_a_sequence_s_log_lines_come_back_to_the_parent(monkeypatch, tmp_path, caplog):
+    """A worker's log lines travel back in its result and are logged by the parent, through
+    its handlers (above the progress bar), each with its sequence's name, instead of being
+    written by the worker onto the parent's terminal."""
+    import logging
+
+    import monovo_cli.pipeline.track as track
+
+    def fake_track(*args, **kwargs):
+        logging.getLogger("monovo_cli.pipeline.track").info("frame 1 lost: too far")
+        raise InputError("frame_000002.png: cannot read the image")
+
+    monkeypatch.setattr(track, "track_sequence", fake_track)
+    caplog.set_level(logging.INFO, logger="monovo_cli")
+    res = track_one(tmp_path / "seq", tmp_path / "o", single_thread=False)
+    assert res["status"] == "failed" and "cannot read" in res["error"]
+    assert res["log"] == [(logging.INFO, "monovo_cli.pipeline.track", "frame 1 lost: too far")]
+    caplog.clear()
+    batch.relog("sol1", res)
+    assert [(r.name, r.getMessage()) for r in caplog.records] == [
+        ("monovo_cli.pipeline.track", "sol1: frame 1 lost: too far")]
+
+
+def test_track_one_passes_terrain_out_threads_and_checkpoint_every(monkeypatch, tmp_path):
+    import monovo_cli.pipeline.track as track
+
+    seen = {}
+
+    def fake_track(*args, **kwargs):
+        seen.update(kwargs)
+        raise InputError("stop here")
+
+    monkeypatch.setattr(track, "track_sequence", fake_track)
+    track_one(tmp_path / "seq", tmp_path / "o", single_thread=False)
+    assert (seen["terrain_out"], seen["threads"]) == (False, 1) and "checkpoint_every" not in seen
+    job = JobOptions(terrain_out=True, threads=3, checkpoint_every=7)
+    track_one(tmp_path / "seq", tmp_path / "o", job, single_thread=False)
+    assert (seen["terrain_out"], seen["threads"], seen["checkpoint_every"]) == (True, 3, 7)
+
+
+def test_a_complete_sequence_stays_complete_whatever_the_threads_or_checkpoints():
+    """--threads and --checkpoint-every leave the outputs as they are, and a sequence that
+    finished has the same outputs with --skip-bad-frames: --resume keeps it. --terrain-out
+    adds outputs: it does not. A done.json from before these options were recorded is read
+    with their defaults."""
+    from dataclasses import asdict
+
+    from monovo_cli.pipeline.batch_job import same_job_options
+
+    recorded = asdict(JobOptions())
+    assert same_job_options(recorded, JobOptions(threads=4, checkpoint_every=0,
+                                                 skip_bad_frames=True))
+    assert not same_job_options(recorded, JobOptions(terrain_out=True))
+    assert not same_job_options(recorded, JobOptions(topic="/cam"))
+    older = {k: v for k, v in recorded.items() if k not in ("terrain_out", "threads",
+                                                             "checkpoint_every")}
+    assert same_job_options(older, JobOptions())
+    assert not same_job_options("garbage", JobOptions())
