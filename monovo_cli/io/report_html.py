@@ -33,6 +33,8 @@ h1 { font-size: 1.5em; } h2 { font-size: 1.2em; border-bottom: 1px solid #ccc;
        padding-bottom: .2em; margin-top: 1.6em; }
 table { border-collapse: collapse; font-size: .9em; margin: .5em 0; }
 th, td { border: 1px solid #ddd; padding: .2em .6em; text-align: left; vertical-align: top; }
+td { overflow-wrap: anywhere; } td.num { overflow-wrap: normal; white-space: nowrap; }
+.wide { max-width: 100%; overflow-x: auto; }
 th { background: #f3f3f3; } td.num { text-align: right; font-variant-numeric: tabular-nums; }
 img { max-width: 100%; height: auto; }
 .pair { display: flex; flex-wrap: wrap; column-gap: 1.5em; }
@@ -111,11 +113,12 @@ def cell_text(value: object) -> str:
 def table(header: Sequence[str], rows: Iterable[Sequence[object]], *,
           numeric: Sequence[bool] | None = None,
           row_classes: Iterable[str] | None = None) -> str:
-    """A ``<table>`` of ``rows`` under ``header``; cells are escaped unless they are
-    :class:`Markup`, values written by :func:`cell_text`; ``numeric`` flags right-aligned
-    columns, whose numbers are written in one notation each (:func:`column_format`;
-    strings in them stay as they are); ``row_classes`` one CSS class per row ("" for
-    none)."""
+    """A ``<table>`` of ``rows`` under ``header``, in a box that scrolls sideways rather than
+    widen the page past its 1100 px (long words such as paths wrap); cells are escaped
+    unless they are :class:`Markup`, values written by :func:`cell_text`; ``numeric``
+    flags right-aligned columns, whose numbers are written in one notation each
+    (:func:`column_format`; strings in them stay as they are); ``row_classes`` one CSS class
+    per row ("" for none)."""
     numeric = list(numeric or [False] * len(header))
     rows = [list(r) for r in rows]
     formats = [column_format(r[i] for r in rows if i < len(r)) if numeric[i] else None
@@ -130,13 +133,14 @@ def table(header: Sequence[str], rows: Iterable[Sequence[object]], *,
             return esc(formats[i](c))
         return esc(cell_text(c))
 
-    out = ["<table>", "<tr>" + "".join(f"<th>{esc(h)}</th>" for h in header) + "</tr>"]
+    out = ['<div class="wide"><table>',
+           "<tr>" + "".join(f"<th>{esc(h)}</th>" for h in header) + "</tr>"]
     for row in rows:
         cls = next(classes) if classes is not None else ""
         cells = "".join(f'<td{" class=num" if numeric[i] else ""}>{cell(i, c)}</td>'
                         for i, c in enumerate(row))
         out.append(f'<tr class="{esc(cls)}">{cells}</tr>' if cls else f"<tr>{cells}</tr>")
-    out.append("</table>")
+    out.append("</table></div>")
     return "\n".join(out)
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import html
+import re
 import shutil
 from html.parser import HTMLParser
 from pathlib import Path
@@ -280,3 +281,23 @@ def test_an_unreadable_frame_is_left_out_of_the_mean_msd(small_drive, tmp_path):
     mean = float(np.mean(run.msd[fitted]))
     assert abs(mean - run.mean_msd) > 0.01  # the zero would pull it down
     assert f"mean msd {mean:.2f} of the 8 frames fitted;" in run_summary(run)
+
+
+def test_index_fits_its_page_width(tmp_path):
+    """batch's index.html ran off a 1100 px window: summary.csv's columns and a long unbroken
+    error path widened the table past the page. Its table now scrolls in a box of the page's
+    width, and a text cell's long words wrap (numbers do not)."""
+    from monovo_cli.io.report_html import STYLE
+
+    root = tmp_path / "out"
+    root.mkdir()
+    error = "cannot read " + "/".join(["a_very_long_folder_name"] * 12) + "/frame.png"
+    path = write_index(root, [{"sequence": "bad", "out_dir": str(root / "bad"),
+                               "status": "failed", "frames": None, "lost": None,
+                               "error": error}])
+    text = path.read_text()
+    assert '<div class="wide"><table>' in text and "</table></div>" in text
+    rules = {sel.strip(): body for sel, body in re.findall(r"([^{}]+)\{([^}]*)\}", STYLE)}
+    assert "overflow-x: auto" in rules[".wide"] and "max-width: 100%" in rules[".wide"]
+    assert "overflow-wrap: anywhere" in rules["td"]
+    assert "max-width: 1100px" in rules["body"]
