@@ -128,3 +128,17 @@ def test_soak_finding_holds_the_invariants(sc, tmp_path):
     verdict = judge(sc, seq, out, r.exit_code, r.output)
     assert not verdict.failures, (f"{sc.klass}: {', '.join(verdict.failures)}\n  {sc.describe()}\n  "
                                   + "\n  ".join(verdict.details))
+
+
+def test_a_fit_that_flips_the_view_of_the_ground_is_not_written_ok(tmp_path):
+    """Seed 41's tiny scenario 88 (160 px, low texture, 0.39 m steps, frame 3 dropped): frame
+    2's fit converged to a wrong minimum 51 deg off in pitch, 0.86 m off, at the drive's msd
+    level, and was written ``reanchored`` with a std 5 times too small. A fit that turns the
+    ground's tilt by more than MAX_TILT_STEP_DEG in one frame is no longer accepted."""
+    sc = draw(41, 88, tiny=True)
+    assert (sc.width, sc.frames, sc.texture, sc.dropped) == (160, 8, "low", (3,))
+    seq, out = tmp_path / "seq", tmp_path / "out"
+    render(sc, seq)
+    r = CliRunner().invoke(main, track_command(seq, out, 1))
+    verdict = judge(sc, seq, out, r.exit_code, r.output)
+    assert not verdict.failures, "\n".join(verdict.details)
