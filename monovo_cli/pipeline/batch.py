@@ -9,6 +9,9 @@ only when asked for), ``resume`` skipping finished ones, and keeps ``summary.csv
 
 Only the standard library is imported at import time, so that a freshly spawned worker can
 limit OpenCV/BLAS/OpenMP to one thread before numpy and OpenCV are loaded.
+
+Long module: the two engines' scheduling (pool and Dask) share one loop of results, resume
+and interruption handling, kept together so that both keep summary.csv the same way.
 """
 
 from __future__ import annotations

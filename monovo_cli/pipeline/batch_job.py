@@ -1,6 +1,9 @@
 """One sequence of a batch: finding sequences, tracking one with its done marker.
 
 The summary table is :mod:`monovo_cli.pipeline.batch_summary`.
+
+Long module: finding sequences, the done marker's fingerprint and the run of one sequence
+belong together: the marker records exactly what the run read and wrote.
 """
 
 from __future__ import annotations
