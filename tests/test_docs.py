@@ -81,3 +81,14 @@ def test_links_between_the_documents_reach_a_file_and_a_heading():
             if fragment and file.suffix == ".md":
                 headings = re.findall(r"^#+ (.+)$", file.read_text(encoding="utf-8"), re.M)
                 assert fragment in {_slug(h) for h in headings}, (doc.name, target)
+
+
+def test_the_method_page_holds_no_run_figure_and_links_the_results():
+    """docs/algorithm.md explains the method; what a run measured is on the results page."""
+    text = (ROOT / "docs" / "algorithm.md").read_text(encoding="utf-8")
+    assert "](benchmarks.md)" in text
+    for pattern in (r"diagnostic", r"we measured", r"frames/s", r"\d ?ms\b", r"\d ?ns\b",
+                    r"\d\.\d{2,} ?%", r"\d(\.\d+)? ?% off", r"\dx ECC",
+                    r"std of error", r"of (its|their) std", r"docs/benchmarks\.md[,\"]"):
+        found = re.search(pattern, text, re.I)
+        assert found is None, (pattern, text[max(0, found.start() - 80):found.end() + 80])
