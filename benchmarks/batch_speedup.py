@@ -46,6 +46,7 @@ if __name__ == "__main__":  # not in spawned workers (__mp_main__): they get the
     _code_snapshot()
 
 from benchmarks.common import machine  # noqa: E402
+from benchmarks.docs_section import writes_section  # noqa: E402
 from monovo_cli.pipeline.batch import run_batch  # noqa: E402
 from monovo_cli.synth.write import synthesize  # noqa: E402
 
@@ -108,6 +109,7 @@ def identical(a: Path, b: Path, names: list[str]) -> list[str]:
             if (a / n / f).read_bytes() != (b / n / f).read_bytes()]
 
 
+@writes_section("batch", "Batch throughput: `monovo batch`, 1 and 2 workers", "benchmarks.batch_speedup")
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -118,6 +120,8 @@ def main() -> None:
     ap.add_argument("--no-dask", action="store_true", help="Skip the Dask LocalCluster run.")
     ap.add_argument("--keep", type=Path, default=None,
                     help="Keep the synthesized archive here (reused when it is there).")
+    ap.add_argument("--write-docs", action="store_true",
+                    help="rewrite this benchmark's section of docs/benchmarks.md")
     args = ap.parse_args()
     w, h = (int(v) for v in args.size.split("x"))
     import monovo_cli

@@ -115,6 +115,7 @@ from benchmarks.common import (
     pair_scenes,
     track_options,
 )
+from benchmarks.docs_section import writes_section
 from benchmarks.paper_tables import run_pairs, scene_header
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import pose_from_vectors, so3_log
@@ -339,6 +340,7 @@ def axis_cells(v: np.ndarray) -> str:
     return ", ".join(f"{a.split()[0]} {x:.2f}" for a, x in zip(AXES, v))
 
 
+@writes_section("crb", "The pairs against the Cramér–Rao bound", "benchmarks.crb")
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_points_option(ap)
@@ -350,6 +352,8 @@ def main() -> None:
                     help="synth's texture of the pairs [procedural]")
     ap.add_argument("--psf", type=float, default=0.0, metavar="SIGMA_PX",
                     help="render the pairs through synth's optical blur (`synth --psf`) [0]")
+    ap.add_argument("--write-docs", action="store_true",
+                    help="rewrite this benchmark's section of docs/benchmarks.md")
     args = ap.parse_args()
     one_core()
     texture = None if args.texture == "procedural" else args.texture

@@ -37,6 +37,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from benchmarks.common import final_drift, machine, motion_errors, std_columns  # noqa: E402
+from benchmarks.docs_section import writes_section  # noqa: E402
 from monovo_cli import iter_track  # noqa: E402
 from monovo_cli.core.options import TrackOptions  # noqa: E402
 from monovo_cli.io.formats import read_motion_csv, read_tum  # noqa: E402
@@ -119,12 +120,15 @@ def std_honesty(root: Path, n_pairs: int, seed: int) -> np.ndarray:
     return np.array(z)
 
 
+@writes_section("drives", "Accuracy on long drives", "benchmarks.drives")
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--frames", type=int, default=1000)
     ap.add_argument("--cases", nargs="+", default=["clean", "exposure", "shadow", "lowtex", "faults"])
     ap.add_argument("--pairs", type=int, default=100)
     ap.add_argument("--seed", type=int, default=7)
+    ap.add_argument("--write-docs", action="store_true",
+                    help="rewrite this benchmark's section of docs/benchmarks.md")
     args = ap.parse_args()
     cv2.setNumThreads(1)
     print(f"machine: {machine()}\n")

@@ -36,6 +36,7 @@ from benchmarks.common import (
     options_note,
     track_options,
 )
+from benchmarks.docs_section import writes_section
 from monovo_cli.core.odometry import estimate_frames
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.io.config import load_init
@@ -112,6 +113,7 @@ def scene_header(n_pairs: int, seed: int, note: str = "default options",
             + f", then rounding to 8 bit. Tracked with {note}, one core.")
 
 
+@writes_section("paper-tables", "The paper's pairs", "benchmarks.paper_tables")
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_points_option(ap)
@@ -120,6 +122,8 @@ def main() -> None:
     ap.add_argument("--noise-var", type=float, nargs="+", default=[0.0, 10.0, 50.0, 100.0],
                     help="noise variances (grey levels^2), one table each")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--write-docs", action="store_true",
+                    help="rewrite this benchmark's section of docs/benchmarks.md")
     args = ap.parse_args()
     one_core()
     print(f"Machine: {machine()}\n")

@@ -74,6 +74,7 @@ from benchmarks.common import (
     options_note,
     track_options,
 )
+from benchmarks.docs_section import writes_section
 from benchmarks.paper_tables import track_pairs
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.status import FrameStatus
@@ -433,6 +434,7 @@ def check(n_pairs: int = 10) -> None:
         print(pairs_table(res) + "\n")
 
 
+@writes_section("peers", "Accuracy against the peers, ORB and ECC", "benchmarks.peers")
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_points_option(ap)
@@ -445,6 +447,8 @@ def main() -> None:
     ap.add_argument("--drive-noise-var", type=float, default=10.0)
     ap.add_argument("--drive-seed", type=int, default=0, help="same default as benchmarks.drive")
     ap.add_argument("--check", action="store_true", help="only validate the peers on noise-free pairs")
+    ap.add_argument("--write-docs", action="store_true",
+                    help="rewrite this benchmark's section of docs/benchmarks.md")
     args = ap.parse_args()
     one_core()
     cv2.setRNGSeed(0)  # RANSAC draws

@@ -45,6 +45,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.common import final_drift, load, machine, one_core, std_columns
+from benchmarks.docs_section import writes_section
 from benchmarks.peers import ECC_EPS_OPENCV, EccPeer, monovo_on_drive, peer_on_drive
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.io.formats import read_motion_csv, read_tum
@@ -169,6 +170,7 @@ def honesty_table(results: list[dict]) -> str:
     return "\n".join(lines)
 
 
+@writes_section("terrain", "Accuracy on terrain", "benchmarks.terrain")
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--frames", type=int, default=300, help="frames per drive")
@@ -182,6 +184,8 @@ def main() -> None:
                          "(e.g. a frame of ../shared/real, a texture nothing was tuned on)")
     ap.add_argument("--plane-only", action="store_true",
                     help="monovo with --plane-only (the paper's one plane per keyframe, no terrain grid)")
+    ap.add_argument("--write-docs", action="store_true",
+                    help="rewrite this benchmark's section of docs/benchmarks.md")
     args = ap.parse_args()
     one_core()
     print(f"Machine: {machine()}; {load()} at the start\n")

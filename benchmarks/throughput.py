@@ -83,6 +83,8 @@ import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from benchmarks.docs_section import writes_section
+
 SIZES = (256, 512, 1024)
 GB = 1e9
 
@@ -780,6 +782,7 @@ def report(args, parts: dict[str, Parts], storage: Storage) -> None:
         print(f"| {b} | {duration(q.read)} | **{duration(q.wall)}** | {q.bound} |")
 
 
+@writes_section("throughput", "Throughput model of a cluster", "benchmarks.throughput")
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -806,6 +809,8 @@ def main() -> None:
     ap.add_argument("--node-gbps", type=float, default=1.25, help="per node GB/s (10 Gb/s)")
     ap.add_argument("--latency-ms", type=float, default=1.0, help="a worker's wait per file")
     ap.add_argument("--stream-gbps", type=float, default=0.5, help="one worker's read stream, GB/s")
+    ap.add_argument("--write-docs", action="store_true",
+                    help="rewrite this benchmark's section of docs/benchmarks.md")
     args = ap.parse_args()
     from benchmarks.common import load, machine, one_core
 
