@@ -25,8 +25,8 @@ noisy pairs (``benchmarks.crb``, second image only, RMS over the pairs):
 
 Why it matters: ``benchmarks.crb`` differentiates the renderer, i.e. takes the continuous
 texture as known, while monovo knows frame 0's samples; where the frames are aliased the
-bound counts information that no estimator working from samples can use (docs/benchmarks.md,
-"Why gravel fails the 2x").
+bound counts information that no estimator working from samples can use (this script measures
+how much: run it).
 """
 
 from __future__ import annotations

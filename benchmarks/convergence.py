@@ -8,7 +8,7 @@ reported on another.
 The finest level's steps shrink by a steady factor: the constant observation matrix (the
 keyframe's B-spline gradients, without the parallax of the frame's baseline) is steeper than
 the frame as the bicubic kernel samples it, so every step falls short, by 8-27 % depending on
-the direction (a diagnostic measurement; docs/benchmarks.md). A step stretched by
+the direction (``python -m benchmarks.convergence`` measures it). A step stretched by
 ``relaxation`` (on steps that move the points less than ``REWEIGHT_PX``, where the problem is
 linear) falls short by less; the iteration's fixed point, ``O^T W FD = 0``, is the same.
 

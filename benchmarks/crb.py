@@ -52,7 +52,7 @@ information: the bound does not count the aliasing as noise, and is lower (stric
 It counts what frame 0's samples let an estimator predict of frame 1, no more. When the
 frames do not alias (a camera with a PSF: band-limited renders) ``R[F0] ∘ w_θ`` *is* frame
 1's noise-free image up to the footprints, ``a_θ ~ 0``, and the bound is the former one
-below (measured: docs/benchmarks.md, "The gravel bound from the rendered frames"). The
+below (``--texture gravel --psf 0.5`` measures it). The
 mismatch ``a_θ`` at the true motion is printed (grey levels RMS), and for scale only the
 ratios to the bound that would count it as white noise of its variance.
 
@@ -68,8 +68,7 @@ alias (gravel without a PSF) it also counts the motion of grain that frame 0's s
 not hold. Measured, that share is small (the bound from the rendered frames is 3-7 % above
 it on gravel, 0-1 % on procedural and behind a 0.5 px PSF): the samples keep nearly all
 the gradient information; what aliasing takes is the *prediction* of frame 1 from them (the
-mismatch, 6.3 grey levels RMS on gravel without a PSF; docs/benchmarks.md, "The gravel
-bound from the rendered frames").
+mismatch, printed by ``--texture gravel`` without a PSF).
 
 Pixels, for both: every pixel of frame 1 whose ground point lies inside frame 0's ground
 region (the ground model only knows what frame 0 saw); the former bound over all of frame 1

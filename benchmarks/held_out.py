@@ -100,8 +100,7 @@ class Constant:
 
 CONSTANTS = (
     Constant("TILT_CHANGE_DEG", (0.0, 0.25, 0.5, 1.0, 2.0),
-             "docs/algorithm.md 4 (kitti_ramp 16.8 -> 2.2 %), docs/benchmarks.md \"The keyframe "
-             "plane's tilt process noise\"",
+             "docs/algorithm.md 4 (kitti_ramp 16.8 -> 2.2 %), `python -m benchmarks.plane_noise`",
              attrs=tuple(f"monovo_cli.core.plane.{m}.TILT_CHANGE_DEG"
                          for m in ("belief", "tracker"))),
     Constant("DISTANCE_CHANGE_PLANAR", (0.002, 0.005, 0.01, 0.02),
@@ -116,19 +115,19 @@ CONSTANTS = (
              "docs/algorithm.md 4 (desk_b's msd 13 -> 477 against frame 0)",
              option="reanchor_msd_ratio"),
     Constant("features.features", (500, 1000, 2000),
-             "docs/benchmarks.md \"Why these settings\" (desk_b and kitti_ramp pairs)",
+             "`python -m benchmarks.real --sections choices` (desk_b and kitti_ramp pairs)",
              option="features.features"),
     Constant("features.detect_side", (128, 256, 512),
-             "docs/benchmarks.md \"Why these settings\" (KITTI's region at half resolution)",
+             "`python -m benchmarks.real --sections choices` (KITTI's region at half resolution)",
              option="features.detect_side"),
     Constant("features.fast_threshold", (5, 10, 20),
-             "docs/benchmarks.md \"Why these settings\"", option="features.fast_threshold"),
+             "`python -m benchmarks.real --sections choices`", option="features.fast_threshold"),
     Constant("features.ratio", (0.7, 0.8, 0.9),
-             "docs/benchmarks.md \"Why these settings\"", option="features.ratio"),
+             "`python -m benchmarks.real --sections choices`", option="features.ratio"),
     Constant("features.ransac_px", (2.0, 3.0, 5.0),
-             "docs/benchmarks.md \"Why these settings\"", option="features.ransac_px"),
+             "`python -m benchmarks.real --sections choices`", option="features.ransac_px"),
     Constant("features.refine", (False, True),
-             "docs/benchmarks.md \"Why these settings\" (KITTI's rotation 3.6x without)",
+             "`python -m benchmarks.real --sections choices` (KITTI's rotation 3.6x without)",
              option="features.refine"),
     Constant("keep_initial_tilt", (False, True),
              "docs/algorithm.md 4 (a rule of issue 24.1: frame 0's tilt corrected where the "

@@ -93,7 +93,7 @@ ECC_ITERATIONS = 50
 ECC_EPS = 1e-6  # the stop of the accuracy tables: the correlation's gain per iteration
 #: OpenCV's own default stop for findTransformECC: what a user who picks ECC gets; on the 512²
 #: drives nearly the same accuracy as ECC_EPS's in a third to a half of the time
-#: (docs/benchmarks.md, "ECC's stop")
+#: (both stops are columns of this benchmark's tables)
 ECC_EPS_OPENCV = 1e-3
 ECC_GAUSS = 5
 ECC_MIN_SIDE = 32  # px, coarsest pyramid level

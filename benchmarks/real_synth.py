@@ -81,7 +81,7 @@ PAIRS_MIN_SHARE = 99.5  # acceptance: % converged per texture
 PAIRS_MAX_CRB = 2.0  # acceptance: error / Cramér-Rao bound, every axis
 SPEED_MIN_FPS = 60.0  # acceptance: frames/s end to end at 512x512
 # ECC's frames/s on the same 512x512 drive on the idle machine (benchmarks.speed, first run at
-# 743ab74, load 1.0-1.1; docs/benchmarks.md): on a loaded machine monovo / ECC in the same run
+# 743ab74, load 1.0-1.1): on a loaded machine monovo / ECC in the same run
 # >= SPEED_MIN_FPS / this is the load-independent form of the bound.
 ECC_REFERENCE_FPS = 17.2
 
