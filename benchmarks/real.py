@@ -270,7 +270,7 @@ def table(head: str, rows: list[list[str]]) -> str:
 # --------------------------------------------------------------------------- sections
 
 
-TRACKING = TrackOptions().features  # the tracker's setting ("cheap" in the tables below)
+TRACKING = TrackOptions().features  # the tracker's setting ("cheap" in this script's tables)
 SETTINGS = (("default", FeatureOptions()),
             (f"cheap (shorter side ≥ {TRACKING.detect_side} px, {TRACKING.features} features)",
              TRACKING))
