@@ -193,7 +193,7 @@ def step_too_large(world_from_prev: np.ndarray, key: Keyframe, cur_from_key: np.
     The tilt bound holds whatever the options: a camera that sees the ground does not turn
     its view of it by tens of degrees from one frame to the next (a rover's jerks on rocks
     and a hand's turn at video rate stay well below), where a fit that converged to a wrong
-    minimum of the intensity differences on little or repetitive texture can, at a msd as
+    minimum of the intensity differences on little or repetitive texture can, at an msd as
     low as the right one's. Turning about the ground's normal (a rover's yaw) does not tilt
     the view and is not bounded."""
     o = options
