@@ -637,7 +637,7 @@ def _load_accepted_or_rejected(p) -> None:
     _assert_valid(cfg)
 
 
-@settings(max_examples=500, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=250, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.one_of(_mutated_config(), _values))
 def test_property_load_init_structured(tmp_path_factory, data):
     p = tmp_path_factory.mktemp("prop") / "init.yaml"
@@ -648,7 +648,7 @@ def test_property_load_init_structured(tmp_path_factory, data):
     _load_accepted_or_rejected(p)
 
 
-@settings(max_examples=500, deadline=None)
+@settings(max_examples=250, deadline=None)
 @given(text=st.one_of(
     st.text(max_size=200),
     st.lists(st.sampled_from(SPEC_EXAMPLE.splitlines(keepends=True) + [

@@ -30,7 +30,7 @@ from monovo_cli.io.formats import (
 )
 from monovo_cli.io.model import load_model
 
-EXAMPLES = 500
+EXAMPLES = 250
 FUZZ = settings(max_examples=EXAMPLES, deadline=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 
