@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
+from monovo_cli.core.aliases import ground_periods
 from monovo_cli.core.estimator.estimate import KeyLevel
 from monovo_cli.core.estimator.ground import (
     default_threshold,
@@ -50,6 +51,7 @@ class Keyframe:
     threshold: float
     terrain_grid: TerrainGrid | None = None  # the points' heights off the plane (None: on it)
     link: PlaneLink | None = None  # how its plane corrected the one carried from the last keyframe
+    periods: np.ndarray | None = None  # (K, 3) its texture's periods along the plane (aliases)
 
 
 def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: Plane,
@@ -104,7 +106,7 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
     while len(levels) > 1 and len(levels[-1].points) < 30:
         levels.pop()
     return Keyframe(index, np.array(world_from_key), plane, corners, tuple(levels), sigma,
-                    threshold, terrain_grid)
+                    threshold, terrain_grid, periods=ground_periods(pyr, camera, plane, corners))
 
 
 def _one_point_per(pixels: int, camera: PinholeCamera) -> int:

@@ -34,6 +34,7 @@ from functools import partial
 
 import numpy as np
 
+from monovo_cli.core.aliases import alias_variance, with_periods
 from monovo_cli.core.checks import (
     FitChecks,
     OdometryState,
@@ -44,15 +45,11 @@ from monovo_cli.core.checks import (
 )
 from monovo_cli.core.estimator.estimate import Estimate
 from monovo_cli.core.estimator.split import SPLIT_POINTS, SPLIT_POINTS_REANCHOR
-from monovo_cli.core.estimator.terrain_grid import (
-    TerrainGrid,
-    transfer_terrain_grid,
-)
+from monovo_cli.core.estimator.terrain_grid import TerrainGrid, transfer_terrain_grid
 from monovo_cli.core.frame_std import (
     PREDICTION_WINDOW,
     FrameResult,
     accepted_covariance,
-    from_predicted,
     lost_row,
     lost_std,
     motion_change,
@@ -85,8 +82,6 @@ from monovo_cli.geometry.lie import orthonormalize, se3_exp, se3_inv, se3_log
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.image.gradients import difference_sigma
 from monovo_cli.image.pyramid import build_pyramid
-
-_from_predicted = from_predicted  # (its name here before the rules moved to frame_std)
 
 
 class Odometry:
@@ -180,6 +175,7 @@ class Odometry:
         if self._key is None:
             self._key = build_keyframe(index, image, self.camera, self._plane0, self.region,
                                        np.eye(4), self.options, mask=self.mask)
+        self._key = with_periods(self._key, image, self.camera)  # (init's model has none)
         self._prev_image = self._key_image = image
         self._recovery.anchored(image)
         self._good = GoodFrame(index, image, np.eye(4), se3_inv(self._key.world_from_key))
@@ -307,6 +303,10 @@ class Odometry:
         if not refuted:
             cov = cov + np.diag(self._unforeseen(motion, np.sqrt(np.clip(np.diag(cov), 0.0, None)),
                                                  index))
+        prior = self._prediction_std(np.zeros(6), self._lost_run + 1)  # after a loss: a step
+        cov = cov + alias_variance(key, pyr, est, prior if self._last_accepted == index - 1 else lost_std(
+            prior, self._last_motion, key.plane.distance), partial(self._motion_to, key), prev_from_cur,
+            self.options.estimator)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         if self._last_motion is not None and self._last_accepted == index - 1:
             self._motion_changes.append(np.abs(motion - self._last_motion))

@@ -137,7 +137,8 @@ def state_types() -> Registry:
         "_handed_over": _f(6, 6, optional=True)})
     types.add(GoodFrame, arrays={"image": _f4(None, None), "world_from_cur": _POSE,
                                  "cur_from_key": _POSE})
-    types.add(Keyframe, arrays={"world_from_key": _POSE, "corners": _f(4, 3)})
+    types.add(Keyframe, arrays={"world_from_key": _POSE, "corners": _f(4, 3),
+                               "periods": _f(None, 3, optional=True)})
     types.add(KeyLevel, arrays={"Jt": _f4(8, None), "probes": _f(None, 3),
                                 "grid": _f4(None, None, 2), "plane_m": _f(3),
                                 "box_rays": _f(None, 3)})

@@ -300,7 +300,7 @@ def test_a_predicted_previous_pose_reaches_the_motion_through_its_lever():
     pose's rotation error moves a 0.7 m step's translation by ``t x w``, which the covariance
     added to the row holds (the per-axis variance alone missed it: 4.3 std on MER seed 15's
     first frame after a loss, a turn predicted where the rover drove)."""
-    from monovo_cli.core.odometry import _from_predicted
+    from monovo_cli.core.frame_std import from_predicted as _from_predicted
     from monovo_cli.geometry.lie import se3_exp
 
     rng = np.random.default_rng(3)

@@ -1,0 +1,189 @@
+"""Repetitive ground texture: the motions the images cannot tell apart.
+
+On a periodic texture (a checkerboard, tiles, a grating) a camera moved by one period along the
+ground sees the same image: the intensity differences have a minimum at every period, as deep
+as the right one. The fit converges to whichever its start reaches, and nothing in its own
+covariance says that a step of one period would fit as well.
+
+:func:`ground_periods` finds a keyframe's periods once, from the normalised autocorrelation of
+its image over the model region (peaks away from the central lobe), as shifts along the plane
+in the keyframe's camera. :func:`aliases` tests an accepted fit against each: the fit moved by
+one period either way and refined is an alias when its robust msd is as low as the fit's
+within the share ALIAS_SHARE of the way to chance. The row's covariance then holds the
+difference (:mod:`monovo_cli.core.frame_std`), the way it holds the split halves' spread.
+docs/algorithm.md section 4 gives the rule.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from functools import lru_cache
+
+import cv2
+import numpy as np
+
+from monovo_cli.core.estimator.estimate import estimate_motion
+from monovo_cli.geometry.camera import PinholeCamera
+from monovo_cli.geometry.lie import so3_log
+from monovo_cli.geometry.plane import Plane
+from monovo_cli.image.pyramid import build_pyramid
+
+PEAK = 0.5  # a normalised autocorrelation peak this high away from the centre: a period
+CENTRAL_LOBE = 0.25  # the central lobe ends where the autocorrelation first falls below this
+MAX_SIDE = 256  # the periods are found at the finest level no larger than this
+MAX_LAG_SHARE = 0.35  # lags up to this share of the region's size (beyond: too few overlaps)
+MAX_PERIODS = 2  # a lattice's basis
+ALIAS_SHARE = 0.25  # an alias fits within this share of the way from the fit's msd to chance
+
+
+def _correlate(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """The circular autocorrelation of ``a`` zero-padded to ``shape``, lag 0 at [0, 0]."""
+    pad = np.zeros(shape, np.float32)
+    pad[:a.shape[0], :a.shape[1]] = a
+    f = cv2.dft(pad, flags=cv2.DFT_COMPLEX_OUTPUT)
+    return cv2.idft(cv2.mulSpectrums(f, f, 0, conjB=True), flags=cv2.DFT_REAL_OUTPUT)
+
+
+@lru_cache(maxsize=8)
+def _window(h: int, w: int) -> tuple[np.ndarray, np.ndarray]:
+    """The Hann window (h, w) and its autocorrelation at lags up to MAX_LAG_SHARE of it."""
+    win = cv2.createHanningWindow((w, h), cv2.CV_32F)
+    return win, _lags(_correlate(win, _dft_shape(h, w)), h, w)
+
+
+def _dft_shape(h: int, w: int) -> tuple[int, int]:
+    """The transform's size: no padding beyond OpenCV's next fast size. The window takes
+    the patch to zero at its edges, so the wrap-around of a circular correlation adds
+    little at the lags kept (MAX_LAG_SHARE of the size)."""
+    return cv2.getOptimalDFTSize(h), cv2.getOptimalDFTSize(w)
+
+
+def _lags(r: np.ndarray, h: int, w: int) -> np.ndarray:
+    """The lags -my..my, -mx..mx (MAX_LAG_SHARE of h, w) of a circular correlation, lag 0 at
+    the centre."""
+    my, mx = int(MAX_LAG_SHARE * h), int(MAX_LAG_SHARE * w)
+    rows = np.r_[r.shape[0] - my:r.shape[0], 0:my + 1]
+    cols = np.r_[r.shape[1] - mx:r.shape[1], 0:mx + 1]
+    return r[np.ix_(rows, cols)].astype(np.float64)
+
+
+def _autocorrelation(patch: np.ndarray) -> np.ndarray:
+    """The normalised autocorrelation of ``patch`` (h, w) at lags up to MAX_LAG_SHARE of its
+    size, lag 0 at the centre, each lag's sum divided by the window's at that lag (an
+    unbiased estimate)."""
+    h, w = patch.shape
+    win, rw = _window(h, w)
+    x = (patch - patch.mean()).astype(np.float32) * win
+    r = _lags(_correlate(x, _dft_shape(h, w)), h, w) / np.maximum(rw, 1e-12)
+    return r / max(r[r.shape[0] // 2, r.shape[1] // 2], 1e-12)
+
+
+def image_periods(patch: np.ndarray) -> list[tuple[float, float, float]]:
+    """``(du, dv, height)``: the lags (px) of ``patch``'s strongest autocorrelation peaks
+    beyond the central lobe, each at least PEAK high, at most MAX_PERIODS, one of each
+    +- pair (dv > 0, or dv == 0 and du > 0)."""
+    h, w = patch.shape
+    if h < 16 or w < 16 or float(np.std(patch)) < 1e-3:
+        return []
+    r = _autocorrelation(patch)
+    cy, cx = r.shape[0] // 2, r.shape[1] // 2
+    # the central lobe: the connected part above CENTRAL_LOBE around lag 0
+    above = (r > CENTRAL_LOBE).astype(np.uint8)
+    _, labels = cv2.connectedComponents(above, connectivity=8)
+    lobe = labels == labels[cy, cx]
+    r = r.astype(np.float32)  # (the local maxima compared in one precision)
+    peaks = (r >= cv2.dilate(r, np.ones((3, 3), np.uint8))) & (r >= PEAK) & ~lobe
+    vs, us = np.nonzero(peaks)
+    # the lattice's basis: the shortest lag, then the shortest not along it
+    out: list[tuple[float, float, float]] = []
+    for v, u in sorted(zip(vs, us), key=lambda p: (p[0] - cy) ** 2 + (p[1] - cx) ** 2):
+        du, dv = float(u - cx), float(v - cy)
+        if dv < 0 or (dv == 0 and du < 0):
+            continue
+        if any(abs(du * b - dv * a) < 0.3 * np.hypot(du, dv) * np.hypot(a, b) for a, b, _ in out):
+            continue
+        out.append((du, dv, float(r[v, u])))
+        if len(out) == MAX_PERIODS:
+            break
+    return out
+
+
+def ground_periods(pyramid: list[np.ndarray], camera: PinholeCamera, plane: Plane,
+                   corners: np.ndarray) -> np.ndarray:
+    """(K, 3) m: the ground texture's periods as shifts along ``plane`` in the keyframe's
+    camera, found in the keyframe's image (``pyramid``, finest first) over the model
+    rectangle ``corners`` (4, 3); (0, 3) for a texture without one."""
+    lv = 0
+    while lv + 1 < len(pyramid) and max(pyramid[lv].shape) > MAX_SIDE:
+        lv += 1
+    cam, img = camera.scaled(lv), pyramid[lv]
+    uv = cam.project(corners)
+    if not np.all(np.isfinite(uv)):
+        return np.zeros((0, 3))
+    x0, y0 = np.clip(np.floor(uv.min(axis=0)).astype(int), 0, [cam.width, cam.height])
+    x1, y1 = np.clip(np.ceil(uv.max(axis=0)).astype(int), 0, [cam.width, cam.height])
+    patch = img[y0:y1, x0:x1]
+    found = image_periods(patch)
+    if not found:
+        return np.zeros((0, 3))
+    c = np.array([(x0 + x1 - 1) / 2.0, (y0 + y1 - 1) / 2.0])
+    out = []
+    for du, dv, _ in found:
+        X = plane.intersect(cam.rays(np.array([c, c + (du, dv)])))
+        if np.all(np.isfinite(X)) and np.all(X[:, 2] > 0):
+            out.append(X[1] - X[0])
+    return np.array(out).reshape(-1, 3)
+
+
+def with_periods(key, image: np.ndarray, camera: PinholeCamera):
+    """``key`` (a Keyframe) with its periods, found in ``image`` (its frame, (H, W) float32)
+    where it has none yet (a model written by ``monovo init``)."""
+    if key.periods is not None:
+        return key
+    pyr = build_pyramid(image, len(key.levels))
+    return replace(key, periods=ground_periods(pyr, camera, key.plane, key.corners))
+
+
+def shifted(cur_from_key: np.ndarray, period: np.ndarray) -> np.ndarray:
+    """``cur_from_key`` (4x4) seeing every ground point where the point one ``period`` (3,)
+    along lies: the same image on a texture of that period."""
+    shift = np.eye(4)
+    shift[:3, 3] = period
+    return cur_from_key @ shift
+
+
+def alias_variance(key, pyramid: list[np.ndarray], est, prediction_std: np.ndarray,
+                   motion_to, motion: np.ndarray, options) -> np.ndarray:
+    """(6, 6): the variance the texture's periods add to an accepted fit ``est`` against
+    ``key`` (``pyramid`` the frame's, finest first) whose motion is ``motion`` (4x4, as
+    motion.csv's; ``motion_to(cur_from_key)`` the motion of another pose); ``options`` the
+    estimator's.
+
+    Each alias (the fit moved by one of ``key``'s periods either way, refined at the finest
+    level, still at least half a period away) whose msd lies within ALIAS_SHARE of the way
+    from the fit's to chance (the points' intensity variance) is a motion the images cannot
+    tell from the fit's. Which of them is right then rests on the prediction: where its std
+    ``prediction_std`` (6,) along the difference ``d`` (6,) is below a third of ``d``, the
+    nearest minimum is the fit's and nothing is added; else the motion is known only as
+    well as the prediction knows it, and its variance along ``d`` is the prediction's (at
+    least ``|d|^2``)."""
+    cov = np.zeros((6, 6))
+    if key.periods is None or not len(key.periods):
+        return cov
+    chance = key.levels[0].intensity_variance
+    for period in key.periods:
+        for sign in (1.0, -1.0):
+            alias = estimate_motion(key.levels, pyramid, shifted(est.cur_from_key, sign * period),
+                                    options=options, gain=est.gain, bias=est.bias, first_level=0)
+            moved = np.linalg.norm(np.linalg.solve(est.cur_from_key, alias.cur_from_key)[:3, 3])
+            if not alias.converged or moved < 0.5 * np.linalg.norm(period) or \
+                    alias.msd - est.msd > ALIAS_SHARE * max(chance - est.msd, 0.0):
+                continue
+            other = motion_to(alias.cur_from_key)
+            d = np.r_[other[:3, 3] - motion[:3, 3], so3_log(other[:3, :3] @ motion[:3, :3].T)]
+            size2 = float(d @ d)
+            s2 = float(prediction_std ** 2 @ (d * d)) / max(size2, 1e-30)
+            if s2 >= size2 / 9.0:
+                cov += np.outer(d, d) * max(s2, size2) / max(size2, 1e-30)
+            break  # one of the +- pair: the same direction
+    return cov
