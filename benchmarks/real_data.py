@@ -14,8 +14,9 @@ The data stays outside the repository: ``--out`` must not lie inside it.
 
 Reserved (issue 41) and never read here: KITTI odometry sequences 00 and 06, frames 1-400 of
 the desk sequence that desk_b comes from, ``KITTI_sequence_1`` of niconielsen32/ComputerVision
-and the test images of luigifreda/pyslam. Every path read is named below, so a reserved file
-cannot be read by accident.
+and the test images of luigifreda/pyslam (``KITTI_sample`` of Transportation-Inspection/
+visual_odometry and FlagArihant2000/visual-odometry is KITTI 00). Every path read is named
+below, so a reserved file cannot be read by accident.
 
 The conversions (pose formats, the lens model, the plane from a camera height or from a
 world plane, the region) are plain functions, tested on synthetic inputs by
