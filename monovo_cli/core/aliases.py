@@ -1,17 +1,18 @@
-"""Repetitive ground texture: the motions the images cannot tell apart.
+"""The motions the images cannot tell apart: a repetitive texture's periods and the rival
+minima of low texture.
 
-On a periodic texture (a checkerboard, tiles, a grating) a camera moved by one period along the
-ground sees the same image: the intensity differences have a minimum at every period, as deep
-as the right one. The fit converges to whichever its start reaches, and nothing in its own
-covariance says that a step of one period would fit as well.
+On a periodic texture (a checkerboard, tiles, a grating) a camera moved by one period along
+the ground sees the same image: the intensity differences have a minimum at every period as
+deep as the right one, and the fit converges to whichever its start reaches.
+:func:`ground_periods` finds a keyframe's periods once (the normalised autocorrelation of its
+image over the model region, peaks away from the central lobe) as shifts along the plane;
+:func:`alias_variance` refits an accepted fit moved by each and, where one fits as well and
+the prediction does not pick between them, adds the difference to the row's covariance.
 
-:func:`ground_periods` finds a keyframe's periods once, from the normalised autocorrelation of
-its image over the model region (peaks away from the central lobe), as shifts along the plane
-in the keyframe's camera. :func:`aliases` tests an accepted fit against each: the fit moved by
-one period either way and refined is an alias when its robust msd is as low as the fit's
-within the share ALIAS_SHARE of the way to chance. The row's covariance then holds the
-difference (:mod:`monovo_cli.core.frame_std`), the way it holds the split halves' spread.
-docs/algorithm.md section 4 gives the rule.
+On low texture the landscape is flat: where no prediction picks the minimum
+(:func:`unpinned`), :func:`rivals` fits from starts around the fit and
+:func:`rival_variance` adds the spread of those that fit as well.
+docs/algorithm.md section 4 ("Repetitive texture", "Rival minima") gives the rules.
 """
 
 from __future__ import annotations
@@ -186,4 +187,69 @@ def alias_variance(key, pyramid: list[np.ndarray], est, prediction_std: np.ndarr
             if s2 >= size2 / 9.0:
                 cov += np.outer(d, d) * max(s2, size2) / max(size2, 1e-30)
             break  # one of the +- pair: the same direction
+    return cov
+
+
+RIVAL_STEPS = (0.25, 0.5)  # the starts around a fit: these shares of the ground's distance
+RIVAL_DIRECTIONS = 8  # ... in as many directions along the plane
+RIVAL_SIDE = 128  # the rivals are fitted down to the finest pyramid level no larger than this
+UNPINNED_SHARE = 0.1  # a prediction whose translation std is beyond this share of the
+#                       ground's distance does not pick the fit's minimum (a standing start,
+#                       a loss, a row that inherits either)
+MOVED_SHARE = 0.1  # a rival this share of the distance from the fit is another minimum
+
+
+def unpinned(prediction_std: np.ndarray, distance: float) -> bool:
+    """Whether a prediction of translation std ``prediction_std[:3]`` (m) leaves the minimum
+    open: beyond UNPINNED_SHARE of the ground's ``distance``."""
+    return float(np.linalg.norm(prediction_std[:3])) > UNPINNED_SHARE * distance
+
+
+def rivals(key, pyramid: list[np.ndarray], est, options) -> list[np.ndarray]:
+    """Where no prediction picks the minimum, the other minima the images leave around the
+    fit ``est`` against ``key`` (``pyramid`` the frame's, finest first): the
+    ``cur_from_key`` (4x4) of those that fit as well as it.
+
+    Fits start from ``est``'s pose moved along ``key``'s plane by RIVAL_STEPS of its distance
+    in RIVAL_DIRECTIONS directions and run down to the finest level no larger than
+    RIVAL_SIDE (``est``'s own pose refitted there too, for a like msd). Those that end at
+    least MOVED_SHARE of the distance from the fit and within ALIAS_SHARE of the way from
+    the best msd to chance fit as well: on low texture the landscape is flat, and the fit's
+    minimum is one of many. None replaces the fit: a coarse msd a little lower is no
+    evidence (on the soak, switching to a clearly lower one mended as many scenarios as it
+    broke); the row says how far the others lie instead."""
+    lv = 0
+    while lv + 1 < len(key.levels) and max(pyramid[lv].shape) > RIVAL_SIDE:
+        lv += 1
+    levels, pyr = key.levels[lv:], pyramid[lv:]
+    h = key.plane.distance
+    basis = np.linalg.svd(np.eye(3) - np.outer(key.plane.normal, key.plane.normal))[0][:, :2]
+    starts = [est.cur_from_key]
+    for k in RIVAL_STEPS:
+        for a in np.arange(RIVAL_DIRECTIONS) * (2 * np.pi / RIVAL_DIRECTIONS):
+            starts.append(shifted(est.cur_from_key, k * h * (basis @ (np.cos(a), np.sin(a)))))
+    fits = [estimate_motion(levels, pyr, s, options=options, gain=est.gain, bias=est.bias)
+            for s in starts]
+    ok = [f for f in fits if f.converged and np.isfinite(f.msd)]
+    if not ok or not fits[0].converged:
+        return []
+    best = min(f.msd for f in ok)
+    chance = levels[0].intensity_variance
+    poses = []
+    for f in ok:
+        apart = np.linalg.norm(np.linalg.solve(est.cur_from_key, f.cur_from_key)[:3, 3])
+        if apart >= MOVED_SHARE * h and f.msd - best <= ALIAS_SHARE * max(chance - best, 0.0):
+            poses.append(f.cur_from_key)
+    return poses
+
+
+def rival_variance(poses: list[np.ndarray], motion_to, motion: np.ndarray) -> np.ndarray:
+    """(6, 6): the mean outer product of the differences (6,) between the motions of the
+    rival ``poses`` (``motion_to(cur_from_key)``) and the fit's ``motion`` (4x4): the spread
+    of the minima the images cannot tell from the fit's."""
+    cov = np.zeros((6, 6))
+    for pose in poses:
+        other = motion_to(pose)
+        d = np.r_[other[:3, 3] - motion[:3, 3], so3_log(other[:3, :3] @ motion[:3, :3].T)]
+        cov += np.outer(d, d) / len(poses)
     return cov

@@ -1,40 +1,32 @@
 """The sequence loop: keyframes, pose chaining, re-anchoring, loss detection and recovery.
 
-Owns the state; does no I/O and no printing. Frames come in one at a time and a
-:class:`FrameResult` goes out for each, so memory does not grow with the sequence.
-
+Owns the state; does no I/O and no printing; one :class:`FrameResult` out per frame in.
 Each frame is estimated against the current keyframe (the paper's ground model, moved with
-the accumulated motion), so drift grows per keyframe, not per frame. A new keyframe is
-anchored on the current frame when too few of the keyframe's points stay in view or the
-model covers too little of the image; its plane is then the MAP of the plane carried by the
-motions, the normal measured from the two images and init.yaml's mounting prior
-(:mod:`monovo_cli.core.plane.tracker`). A frame whose estimate fails the divergence checks
-is marked ``lost``, carries the constant-velocity prediction (or the feature hypothesis'
-pose where the two disagree), and the model is re-anchored on the next good frame
-(:class:`OdometryState`). docs/algorithm.md section 4 gives the re-anchoring and loss rules,
-section 8 the capture, bridging and re-initialisation.
-
-The ground model itself is built by :mod:`monovo_cli.core.keyframe`; the settings are
-:class:`~monovo_cli.core.options.TrackOptions`.
+the accumulated motion); a new keyframe is anchored when too few of its points stay in view
+or the model covers too little of the image, its plane the MAP of the carried plane, the
+two images' normal and init.yaml's mounting (:mod:`monovo_cli.core.plane.tracker`). A
+frame failing the divergence checks is ``lost`` at the constant-velocity prediction (or
+the feature hypothesis' pose) and the next good frame re-anchors (:class:`OdometryState`).
+docs/algorithm.md section 4 gives the rules, section 8 the capture and re-initialisation.
 
 Long module: the coordinator, one state machine over one mutable state (the checkpoint
-encodes its attributes as they are). The rules it applies live beside it: the tests a fit
-must pass and the capture beyond the prediction (:mod:`monovo_cli.core.checks`), the std a
-row states (:mod:`monovo_cli.core.frame_std`), the next keyframe's plane and terrain grid
-(:mod:`monovo_cli.core.plane.successor`), the frame measured again from the last good one
-after lost frames (:mod:`monovo_cli.core.recovery.reinit`).
+encodes its attributes as they are). The rules live beside it: the fit's checks and the
+capture (:mod:`monovo_cli.core.checks`), the row's std (:mod:`monovo_cli.core.frame_std`),
+the motions the images cannot tell apart (:mod:`monovo_cli.core.aliases`), the next
+keyframe (:mod:`monovo_cli.core.plane.successor`, :mod:`monovo_cli.core.keyframe`), the
+frame measured again after lost frames (:mod:`monovo_cli.core.recovery.reinit`).
 """
 
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import replace
 from functools import partial
 
 import numpy as np
 
-from monovo_cli.core.aliases import alias_variance, with_periods
+from monovo_cli.core.aliases import alias_variance, rival_variance, rivals, unpinned, with_periods
 from monovo_cli.core.checks import (
     FitChecks,
     OdometryState,
@@ -238,6 +230,9 @@ class Odometry:
         est, reason, captured, from_prediction = self._checks().fit(
             index, key, image, pyr, guess, predicted, self._state is OdometryState.STARTING,
             prediction=self._predicted, recovery=self._recovery, brightness=(self._gain, self._bias))
+        found: list[np.ndarray] = []  # where no prediction picks the minimum: the others
+        if not reason and unpinned(self._prior(index), key.plane.distance):
+            found = rivals(key, pyr, est, self.options.estimator)
         if not reason:
             reason = step_too_large(self._world_from_prev, key, orthonormalize(est.cur_from_key),
                                     self.options)
@@ -254,14 +249,15 @@ class Odometry:
             if closer is not None and closer[1].points > 2 * est.points:
                 return self._reinit(index, timestamp, image, pyr, "", resolved=closer)
         return self._accept(index, timestamp, image, pyr, est, captured=captured,
-                            refuted=refuted(from_prediction, est, captured))
+                            refuted=refuted(from_prediction, est, captured), rivals=found)
 
     def skip(self, index: int, timestamp: float) -> FrameResult:
         """Frame ``index`` has no usable image: record it as lost at the prediction."""
         return self._lost(index, timestamp, "unreadable frame")
 
     def _accept(self, index: int, timestamp: float, image: np.ndarray, pyr: list[np.ndarray],
-                est: Estimate, *, captured: bool = False, refuted: bool = False) -> FrameResult:
+                est: Estimate, *, captured: bool = False, refuted: bool = False,
+                rivals: Sequence[np.ndarray] = ()) -> FrameResult:
         """Record ``est`` (``captured``: it came from the capture's starts, not from the
         prediction; ``refuted``: the images refuted the prediction, :func:`frame_std.refuted`).
         A captured frame's, and a re-anchoring frame's, split-half spread joins its covariance
@@ -303,10 +299,9 @@ class Odometry:
         if not refuted:
             cov = cov + np.diag(self._unforeseen(motion, np.sqrt(np.clip(np.diag(cov), 0.0, None)),
                                                  index))
-        prior = self._prediction_std(np.zeros(6), self._lost_run + 1)  # after a loss: a step
-        cov = cov + alias_variance(key, pyr, est, prior if self._last_accepted == index - 1 else lost_std(
-            prior, self._last_motion, key.plane.distance), partial(self._motion_to, key), prev_from_cur,
-            self.options.estimator)
+        cov = cov + alias_variance(key, pyr, est, self._prior(index), partial(self._motion_to, key),
+                                   prev_from_cur, self.options.estimator) \
+            + rival_variance(rivals, partial(self._motion_to, key), prev_from_cur)
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         if self._last_motion is not None and self._last_accepted == index - 1:
             self._motion_changes.append(np.abs(motion - self._last_motion))
@@ -358,6 +353,12 @@ class Odometry:
         return prediction_std(self._motion_changes, self._last_motion, self._last_std,
                               self._key.plane.distance,
                               self._lost_run if lost_run is None else lost_run, bridged)
+
+    def _prior(self, index: int) -> np.ndarray:
+        """(6,) the prediction's std at frame ``index``; after a loss a lost row's (a step)."""
+        prior = self._prediction_std(np.zeros(6), self._lost_run + 1)
+        return prior if self._last_accepted == index - 1 else \
+            lost_std(prior, self._last_motion, self._key.plane.distance)
 
     def _unforeseen(self, motion: np.ndarray, std: np.ndarray, index: int) -> np.ndarray:
         """(6,) the variance an accepted frame's motion ``motion`` (6,; its std ``std``) adds

@@ -80,3 +80,21 @@ def test_a_model_written_without_periods_gets_those_of_its_frame():
     assert key.periods.shape == (2, 3)
     np.testing.assert_array_equal(with_periods(replace(key, periods=None), image, cam).periods,
                                   key.periods)
+
+
+def test_a_textured_ground_leaves_no_rival_minimum():
+    """A fit on a fine random texture: every start around it comes back to it or fits
+    worse, so no rival widens the row."""
+    from monovo_cli.core.aliases import rivals
+    from monovo_cli.core.estimator.estimate import estimate_motion
+    from monovo_cli.core.keyframe import build_keyframe
+    from monovo_cli.core.options import TrackOptions
+
+    cam = PinholeCamera(256, 256, 400.0, 400.0, 127.5, 127.5)
+    plane = Plane(np.array([0.0, 0.0, 1.0]), 2.0)
+    image = noise(256, 256, 3)
+    opts = TrackOptions()
+    key = build_keyframe(0, image, cam, plane, (0, 0, 256, 256), np.eye(4), opts)
+    pyr = build_pyramid(image, len(key.levels))
+    est = estimate_motion(key.levels, pyr, np.eye(4), options=opts.estimator)
+    assert rivals(key, pyr, est, opts.estimator) == []
