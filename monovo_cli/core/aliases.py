@@ -192,7 +192,9 @@ def alias_variance(key, pyramid: list[np.ndarray], est, prediction_std: np.ndarr
 
 RIVAL_STEPS = (0.25, 0.5)  # the starts around a fit: these shares of the ground's distance
 RIVAL_DIRECTIONS = 8  # ... in as many directions along the plane
-RIVAL_SIDE = 128  # the rivals are fitted down to the finest pyramid level no larger than this
+RIVAL_SIDE = 64  # the rivals are fitted down to the finest pyramid level no larger than this
+RIVAL_ITERATIONS = 10  # ... with at most this many iterations a level
+RIVAL_TOLERANCE_PX = 0.05  # ... stopping at this step (px), bilinear: a coarse look, not a fit
 UNPINNED_SHARE = 0.1  # a prediction whose translation std is beyond this share of the
 #                       ground's distance does not pick the fit's minimum (a standing start,
 #                       a loss, a row that inherits either)
@@ -228,7 +230,9 @@ def rivals(key, pyramid: list[np.ndarray], est, options) -> list[np.ndarray]:
     for k in RIVAL_STEPS:
         for a in np.arange(RIVAL_DIRECTIONS) * (2 * np.pi / RIVAL_DIRECTIONS):
             starts.append(shifted(est.cur_from_key, k * h * (basis @ (np.cos(a), np.sin(a)))))
-    fits = [estimate_motion(levels, pyr, s, options=options, gain=est.gain, bias=est.bias)
+    coarse = replace(options, interpolation="linear", relaxation=1.0, max_iterations=RIVAL_ITERATIONS,
+                     step_tolerance_px=RIVAL_TOLERANCE_PX)
+    fits = [estimate_motion(levels, pyr, s, options=coarse, gain=est.gain, bias=est.bias)
             for s in starts]
     ok = [f for f in fits if f.converged and np.isfinite(f.msd)]
     if not ok or not fits[0].converged:
