@@ -259,7 +259,8 @@ class Odometry:
                 est: Estimate, *, captured: bool = False, refuted: bool = False,
                 rivals: Sequence[np.ndarray] = ()) -> FrameResult:
         """Record ``est`` (``captured``: it came from the capture's starts, not from the
-        prediction; ``refuted``: the images refuted the prediction, :func:`frame_std.refuted`).
+        prediction; ``refuted``: the images refuted the prediction, :func:`frame_std.refuted`;
+        ``rivals``: the poses of other minima as good, :func:`aliases.rivals`).
         A captured frame's, and a re-anchoring frame's, split-half spread joins its covariance
         (:func:`frame_std.split_spread`); a motion the prediction did not foresee widens it
         (:meth:`_unforeseen`) unless the prediction was refuted."""
