@@ -25,7 +25,7 @@ import numpy as np
 
 from monovo_cli.core.estimator.estimate import estimate_motion
 from monovo_cli.geometry.camera import PinholeCamera
-from monovo_cli.geometry.lie import so3_log
+from monovo_cli.geometry.lie import motion_change
 from monovo_cli.geometry.plane import Plane
 from monovo_cli.image.pyramid import build_pyramid
 
@@ -35,6 +35,20 @@ MAX_SIDE = 256  # the periods are found at the finest level no larger than this
 MAX_LAG_SHARE = 0.35  # lags up to this share of the region's size (beyond: too few overlaps)
 MAX_PERIODS = 2  # a lattice's basis
 ALIAS_SHARE = 0.25  # an alias fits within this share of the way from the fit's msd to chance
+
+
+def _level_within(pyramid: list[np.ndarray], levels: int, side: int) -> int:
+    """The finest of the first ``levels`` levels of ``pyramid`` no larger than ``side`` px
+    (the coarsest of them if none is)."""
+    lv = 0
+    while lv + 1 < levels and max(pyramid[lv].shape) > side:
+        lv += 1
+    return lv
+
+
+def _apart(a: np.ndarray, b: np.ndarray) -> float:
+    """How far (m) the camera of pose ``b`` (4x4 ``cur_from_key``) is from that of ``a``."""
+    return float(np.linalg.norm(np.linalg.solve(a, b)[:3, 3]))
 
 
 def _correlate(a: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
@@ -114,9 +128,7 @@ def ground_periods(pyramid: list[np.ndarray], camera: PinholeCamera, plane: Plan
     """(K, 3) m: the ground texture's periods as shifts along ``plane`` in the keyframe's
     camera, found in the keyframe's image (``pyramid``, finest first) over the model
     rectangle ``corners`` (4, 3); (0, 3) for a texture without one."""
-    lv = 0
-    while lv + 1 < len(pyramid) and max(pyramid[lv].shape) > MAX_SIDE:
-        lv += 1
+    lv = _level_within(pyramid, len(pyramid), MAX_SIDE)
     cam, img = camera.scaled(lv), pyramid[lv]
     uv = cam.project(corners)
     if not np.all(np.isfinite(uv)):
@@ -176,12 +188,11 @@ def alias_variance(key, pyramid: list[np.ndarray], est, prediction_std: np.ndarr
         for sign in (1.0, -1.0):
             alias = estimate_motion(key.levels, pyramid, shifted(est.cur_from_key, sign * period),
                                     options=options, gain=est.gain, bias=est.bias, first_level=0)
-            moved = np.linalg.norm(np.linalg.solve(est.cur_from_key, alias.cur_from_key)[:3, 3])
-            if not alias.converged or moved < 0.5 * np.linalg.norm(period) or \
+            if not alias.converged or \
+                    _apart(est.cur_from_key, alias.cur_from_key) < 0.5 * np.linalg.norm(period) or \
                     alias.msd - est.msd > ALIAS_SHARE * max(chance - est.msd, 0.0):
                 continue
-            other = motion_to(alias.cur_from_key)
-            d = np.r_[other[:3, 3] - motion[:3, 3], so3_log(other[:3, :3] @ motion[:3, :3].T)]
+            d = motion_change(motion_to(alias.cur_from_key), motion)
             size2 = float(d @ d)
             s2 = float(prediction_std ** 2 @ (d * d)) / max(size2, 1e-30)
             if s2 >= size2 / 9.0:
@@ -220,9 +231,7 @@ def rivals(key, pyramid: list[np.ndarray], est, options) -> list[np.ndarray]:
     minimum is one of many. None replaces the fit: a coarse msd a little lower is no
     evidence (on the soak, switching to a clearly lower one mended as many scenarios as it
     broke); the row says how far the others lie instead."""
-    lv = 0
-    while lv + 1 < len(key.levels) and max(pyramid[lv].shape) > RIVAL_SIDE:
-        lv += 1
+    lv = _level_within(pyramid, len(key.levels), RIVAL_SIDE)
     levels, pyr = key.levels[lv:], pyramid[lv:]
     h = key.plane.distance
     basis = np.linalg.svd(np.eye(3) - np.outer(key.plane.normal, key.plane.normal))[0][:, :2]
@@ -241,8 +250,8 @@ def rivals(key, pyramid: list[np.ndarray], est, options) -> list[np.ndarray]:
     chance = levels[0].intensity_variance
     poses = []
     for f in ok:
-        apart = np.linalg.norm(np.linalg.solve(est.cur_from_key, f.cur_from_key)[:3, 3])
-        if apart >= MOVED_SHARE * h and f.msd - best <= ALIAS_SHARE * max(chance - best, 0.0):
+        if _apart(est.cur_from_key, f.cur_from_key) >= MOVED_SHARE * h and \
+                f.msd - best <= ALIAS_SHARE * max(chance - best, 0.0):
             poses.append(f.cur_from_key)
     return poses
 
@@ -253,7 +262,6 @@ def rival_variance(poses: list[np.ndarray], motion_to, motion: np.ndarray) -> np
     of the minima the images cannot tell from the fit's."""
     cov = np.zeros((6, 6))
     for pose in poses:
-        other = motion_to(pose)
-        d = np.r_[other[:3, 3] - motion[:3, 3], so3_log(other[:3, :3] @ motion[:3, :3].T)]
+        d = motion_change(motion_to(pose), motion)
         cov += np.outer(d, d) / len(poses)
     return cov

@@ -23,7 +23,7 @@ from monovo_cli.core.keyframe import Keyframe
 from monovo_cli.core.options import EstimatorOptions
 from monovo_cli.core.recovery.gap import GapClosure
 from monovo_cli.core.status import FrameStatus
-from monovo_cli.geometry.lie import orthonormalize, skew, so3_log
+from monovo_cli.geometry.lie import motion_change, orthonormalize, skew, so3_log
 
 PREDICTION_WINDOW = 30  # accepted frames whose motion changes measure the prediction's error
 STANDING_SHARE = 0.5  # a lost frame's least std of each translation, x distance
@@ -213,12 +213,6 @@ def split_spread(key: Keyframe, pyr: list[np.ndarray], est: Estimate, options: E
         out.append((motion_change(motion_to(key, a), motion_to(key, b)),
                     so3_log(a[:3, :3] @ b[:3, :3].T)))
     return out
-
-
-def motion_change(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(6,) (m, rad): motion ``a`` (4x4) less motion ``b`` in (tx, ty, tz, rx, ry, rz), the
-    rotation as the rotation vector of ``a_R b_R^T``."""
-    return np.concatenate([a[:3, 3] - b[:3, 3], so3_log(a[:3, :3] @ b[:3, :3].T)])
 
 
 def robust_msd(est: Estimate) -> float:

@@ -230,9 +230,6 @@ class Odometry:
         est, reason, captured, from_prediction = self._checks().fit(
             index, key, image, pyr, guess, predicted, self._state is OdometryState.STARTING,
             prediction=self._predicted, recovery=self._recovery, brightness=(self._gain, self._bias))
-        found: list[np.ndarray] = []  # where no prediction picks the minimum: the others
-        if not reason and unpinned(self._prior(index), key.plane.distance):
-            found = rivals(key, pyr, est, self.options.estimator)
         if not reason:
             reason = step_too_large(self._world_from_prev, key, orthonormalize(est.cur_from_key),
                                     self.options)
@@ -248,6 +245,9 @@ class Odometry:
             closer = self._resolve_gap(index, image, pyr)
             if closer is not None and closer[1].points > 2 * est.points:
                 return self._reinit(index, timestamp, image, pyr, "", resolved=closer)
+        # where no prediction picks the minimum: the others as good (an accepted fit's only)
+        found = rivals(key, pyr, est, self.options.estimator) \
+            if unpinned(self._prior(index), key.plane.distance) else []
         return self._accept(index, timestamp, image, pyr, est, captured=captured,
                             refuted=refuted(from_prediction, est, captured), rivals=found)
 

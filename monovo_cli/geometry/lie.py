@@ -129,6 +129,12 @@ def orthonormalize(T: np.ndarray) -> np.ndarray:
     return out
 
 
+def motion_change(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(6,) (m, rad): motion ``a`` (4x4) less motion ``b`` in (tx, ty, tz, rx, ry, rz), the
+    rotation as the rotation vector of ``a_R b_R^T``."""
+    return np.concatenate([a[:3, 3] - b[:3, 3], so3_log(a[:3, :3] @ b[:3, :3].T)])
+
+
 def make_pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:
     """4x4 transform from a 3x3 rotation and a translation (3,)."""
     T = np.eye(4)
