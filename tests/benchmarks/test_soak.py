@@ -171,3 +171,34 @@ def test_a_standing_start_on_low_texture_states_the_minima_it_cannot_exclude(tmp
     r = CliRunner().invoke(main, track_command(seq, out, 1))
     verdict = judge(sc, seq, out, r.exit_code, r.output)
     assert set(verdict.failures) <= {"drift"}, "\n".join(verdict.details)
+
+
+def test_a_turn_after_a_dropped_frame_states_the_turned_minima_it_cannot_exclude(tmp_path):
+    """Seed 40's scenario 28 (160 px gravel, MER turns of 17.5 deg, noise variance 23, a
+    moving shadow, frame 22 dropped): frame 24, the first after a re-initialisation, was
+    written ok 25 deg off in pitch at 22.5 std. The starts around a fit no prediction pins
+    were moved along the plane only; turned ones now find the minima that trade a turn for
+    a step (:func:`monovo_cli.core.aliases.rivals`), and the row's std reaches the farthest.
+    The drift stays: 7 of 24 frames are lost."""
+    sc = draw(40, 28)
+    assert (sc.width, sc.frames, sc.mode, sc.texture, sc.dropped) == (160, 26, "mer", "gravel", (22,))
+    seq, out = tmp_path / "seq", tmp_path / "out"
+    render(sc, seq)
+    r = CliRunner().invoke(main, track_command(seq, out, 1))
+    verdict = judge(sc, seq, out, r.exit_code, r.output)
+    assert set(verdict.failures) <= {"drift"}, "\n".join(verdict.details)
+
+
+def test_steps_past_the_capture_range_after_a_loss_state_the_minima_they_cannot_exclude(tmp_path):
+    """Seed 40's scenario 193 (384x288, the wheels climbing rocks, 1.29 m steps, 0.74 of the
+    camera's height): after frames 4-10 were lost, frames 13-16 were written 1.3-1.4 m and
+    7-11 deg off at 5-8.5 std, a short step the images fit as well as the true one. The
+    rival minima, now sought turned as well as moved, and the farthest of them in the
+    std (not their mean, which the near ones diluted), cover them. The drift stays."""
+    sc = draw(40, 193)
+    assert (sc.width, sc.height, sc.frames, sc.ground, sc.climb) == (384, 288, 17, "rocks", True)
+    seq, out = tmp_path / "seq", tmp_path / "out"
+    render(sc, seq)
+    r = CliRunner().invoke(main, track_command(seq, out, 1))
+    verdict = judge(sc, seq, out, r.exit_code, r.output)
+    assert set(verdict.failures) <= {"drift"}, "\n".join(verdict.details)
