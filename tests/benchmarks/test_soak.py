@@ -82,49 +82,37 @@ def test_scenario_holds_the_invariants(index, tmp_path):
                                   + "\n  ".join(verdict.details) + f"\n  replay: {sc.replay()}")
 
 
-# Scenarios of the full box that showed a defect the issue names, kept as regression tests
-# with every drawn value spelled out (the box may change; these stay), and the defect.
+# A scenario of the full box that showed a defect the issue names, kept as a regression test
+# with every drawn value spelled out (the box may change; this stays).
 IGNITION = replace(draw(40, 13), frames=22, blank=(14,), corrupt=((10, "empty"),))
-FOUND = [
-    (IGNITION,
-     "untrusted rows and drift: after three lost frames the gap is re-solved 7 deg off "
-     "(5.4 std), and rows 17-19 are written ok 9-12 deg off with stds of 0.02-0.16 deg (the "
-     "IndexError it stopped with first is fixed: test_the_soak_crash_drive_runs_to_the_end)"),
-]
 
 
-def test_the_soak_crash_drive_runs_to_the_end(tmp_path):
+def test_the_soak_crash_drive_runs_to_the_end_and_its_rows_say_what_they_know(tmp_path):
     """The drive the soak stopped on with ``internal error: IndexError`` (exit 1) at frame 9,
     after three lost frames: ``step -> _resolve_gap -> estimate_motion(ref.levels, pyr,
     ...)``, the gap re-solved against a keyframe with more pyramid levels than the frame's
     pyramid (192 px, wheels climbing rocks, zigzagging 0.68 m steps). Now every frame has
-    its row and the run exits 0."""
+    its row and the run exits 0 or 3.
+
+    Its rows 17-19, after the gap was re-solved 7 deg off, were then written ok 9-12 deg off
+    at 19-37 std; the rival minima sought turned as well as moved
+    (:func:`monovo_cli.core.aliases.rivals`) now cover them. The drift stays (10 of 21
+    frames lost, 43 % of the path)."""
     seq, out = tmp_path / "seq", tmp_path / "out"
     render(IGNITION, seq)
     r = CliRunner().invoke(main, track_command(seq, out, 1))
     assert r.exit_code in (0, 3), r.output
     rows = (out / "motion.csv").read_text().splitlines()
     assert len(rows) == 1 + 21
+    verdict = judge(IGNITION, seq, out, r.exit_code, r.output)
+    assert set(verdict.failures) <= {"drift"}, "\n".join(verdict.details)
 
 
-def test_the_found_scenarios_are_the_ones_that_failed():
+def test_the_crash_scenario_is_the_one_that_failed():
     """The crash scenario as the soak drew it at 29e2d18 (seed 40, index 13, 22 frames)."""
-    sc = FOUND[0][0]
-    assert (sc.width, sc.frames, sc.mode, sc.ground, sc.climb, sc.texture) == (
-        192, 22, "zigzag", "rocks", True, "gravel")
-    assert round(sc.step * sc.cam_height, 2) == 0.68 and sc.blank == (14,)
-
-
-@pytest.mark.parametrize("sc", [
-    pytest.param(sc, id=f"seed{sc.seed}-{sc.index}", marks=pytest.mark.xfail(strict=True, reason=why))
-    for sc, why in FOUND])
-def test_soak_finding_holds_the_invariants(sc, tmp_path):
-    seq, out = tmp_path / "seq", tmp_path / "out"
-    render(sc, seq)
-    r = CliRunner().invoke(main, track_command(seq, out, 1))
-    verdict = judge(sc, seq, out, r.exit_code, r.output)
-    assert not verdict.failures, (f"{sc.klass}: {', '.join(verdict.failures)}\n  {sc.describe()}\n  "
-                                  + "\n  ".join(verdict.details))
+    assert (IGNITION.width, IGNITION.frames, IGNITION.mode, IGNITION.ground, IGNITION.climb,
+            IGNITION.texture) == (192, 22, "zigzag", "rocks", True, "gravel")
+    assert round(IGNITION.step * IGNITION.cam_height, 2) == 0.68 and IGNITION.blank == (14,)
 
 
 def test_a_fit_that_flips_the_view_of_the_ground_is_not_written_ok(tmp_path):
