@@ -55,6 +55,14 @@ def _case(index: int):
     return pytest.param(index, id=f"{index:02d}-{sc.klass}", marks=marks)
 
 
+def _tracked(sc, tmp_path):
+    """The soak's verdict on scenario ``sc``, rendered and tracked in ``tmp_path``."""
+    seq, out = tmp_path / "seq", tmp_path / "out"
+    render(sc, seq)
+    r = CliRunner().invoke(main, track_command(seq, out, 1))
+    return judge(sc, seq, out, r.exit_code, r.output)
+
+
 def test_the_slice_is_wide():
     """The slice covers every class and the box's damage kinds (not only easy drives)."""
     scenarios = [draw(SEED, i, tiny=True) for i in INDICES]
@@ -74,10 +82,7 @@ def test_a_scenario_is_replayed_exactly():
 @pytest.mark.parametrize("index", [_case(i) for i in INDICES])
 def test_scenario_holds_the_invariants(index, tmp_path):
     sc = draw(SEED, index, tiny=True)
-    seq, out = tmp_path / "seq", tmp_path / "out"
-    render(sc, seq)
-    r = CliRunner().invoke(main, track_command(seq, out, 1))
-    verdict = judge(sc, seq, out, r.exit_code, r.output)
+    verdict = _tracked(sc, tmp_path)
     assert not verdict.failures, (f"{sc.klass}: {', '.join(verdict.failures)}\n  {sc.describe()}\n  "
                                   + "\n  ".join(verdict.details) + f"\n  replay: {sc.replay()}")
 
@@ -122,10 +127,7 @@ def test_a_fit_that_flips_the_view_of_the_ground_is_not_written_ok(tmp_path):
     ground's tilt by more than MAX_TILT_STEP_DEG in one frame is no longer accepted."""
     sc = draw(41, 88, tiny=True)
     assert (sc.width, sc.frames, sc.texture, sc.dropped) == (160, 8, "low", (3,))
-    seq, out = tmp_path / "seq", tmp_path / "out"
-    render(sc, seq)
-    r = CliRunner().invoke(main, track_command(seq, out, 1))
-    verdict = judge(sc, seq, out, r.exit_code, r.output)
+    verdict = _tracked(sc, tmp_path)
     assert not verdict.failures, "\n".join(verdict.details)
 
 
@@ -138,10 +140,7 @@ def test_a_step_the_checkerboard_cannot_tell_from_another_says_so(tmp_path):
     can recover a period it was never shown."""
     sc = draw(40, 12)
     assert (sc.width, sc.frames, sc.mode, sc.texture) == (192, 25, "spin", "checker")
-    seq, out = tmp_path / "seq", tmp_path / "out"
-    render(sc, seq)
-    r = CliRunner().invoke(main, track_command(seq, out, 1))
-    verdict = judge(sc, seq, out, r.exit_code, r.output)
+    verdict = _tracked(sc, tmp_path)
     assert set(verdict.failures) <= {"drift"}, "\n".join(verdict.details)
 
 
@@ -154,10 +153,7 @@ def test_a_standing_start_on_low_texture_states_the_minima_it_cannot_exclude(tmp
     drift stays."""
     sc = draw(40, 209)
     assert (sc.width, sc.height, sc.frames, sc.texture, sc.ground) == (192, 144, 12, "low", "rocks")
-    seq, out = tmp_path / "seq", tmp_path / "out"
-    render(sc, seq)
-    r = CliRunner().invoke(main, track_command(seq, out, 1))
-    verdict = judge(sc, seq, out, r.exit_code, r.output)
+    verdict = _tracked(sc, tmp_path)
     assert set(verdict.failures) <= {"drift"}, "\n".join(verdict.details)
 
 
@@ -170,10 +166,7 @@ def test_a_turn_after_a_dropped_frame_states_the_turned_minima_it_cannot_exclude
     The drift stays: 7 of 24 frames are lost."""
     sc = draw(40, 28)
     assert (sc.width, sc.frames, sc.mode, sc.texture, sc.dropped) == (160, 26, "mer", "gravel", (22,))
-    seq, out = tmp_path / "seq", tmp_path / "out"
-    render(sc, seq)
-    r = CliRunner().invoke(main, track_command(seq, out, 1))
-    verdict = judge(sc, seq, out, r.exit_code, r.output)
+    verdict = _tracked(sc, tmp_path)
     assert set(verdict.failures) <= {"drift"}, "\n".join(verdict.details)
 
 
@@ -185,8 +178,5 @@ def test_steps_past_the_capture_range_after_a_loss_state_the_minima_they_cannot_
     std (not their mean, which the near ones diluted), cover them. The drift stays."""
     sc = draw(40, 193)
     assert (sc.width, sc.height, sc.frames, sc.ground, sc.climb) == (384, 288, 17, "rocks", True)
-    seq, out = tmp_path / "seq", tmp_path / "out"
-    render(sc, seq)
-    r = CliRunner().invoke(main, track_command(seq, out, 1))
-    verdict = judge(sc, seq, out, r.exit_code, r.output)
+    verdict = _tracked(sc, tmp_path)
     assert set(verdict.failures) <= {"drift"}, "\n".join(verdict.details)
