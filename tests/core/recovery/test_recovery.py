@@ -239,10 +239,11 @@ def test_a_frame_the_coarse_features_miss_is_bridged_at_full_resolution(synth_dr
     place, blank. Frame 13 is then 1.2 m and a turn from the keyframe: the features at the
     tracker's 256 and 512 px levels find no hypothesis, at full resolution they do. Without
     that last try frames 12-13 were lost, frame 14 re-initialised 14 deg off and the drive
-    ended 43 % off (40 frames); with it frame 13 is tracked and the 16-frame drive ends
-    within 1 % of its path."""
+    ended 43 % off (40 frames; 29 % on 16 frames); with it frame 13 is tracked and the
+    drive to it ends within 1 % of its path (measured on these 14 frames: 0.02 %; 19 %
+    without the last try, frame 13 lost)."""
     seq = tmp_path / "mer"
-    shutil.copytree(synth_drive(preset="mer", frames=16, size=(1024, 1024), noise_var=10.0,
+    shutil.copytree(synth_drive(preset="mer", frames=14, size=(1024, 1024), noise_var=10.0,
                                 seed=15), seq)
     _blanked(seq, [12])
     run = track_frames(seq)
