@@ -45,6 +45,13 @@ def test_the_three_sigma_band_holds_99_percent_where_the_std_is_honest(tracked):
         "tx", "ty", "tz", "rx", "ry", "rz"}
 
 
+def _colours(img: np.ndarray) -> int:
+    """The distinct colours of an (H, W, 3) uint8 image, each pixel packed into one integer
+    (``np.unique(..., axis=0)`` counts the same rows but sorts them as records, 100x slower)."""
+    return len(np.unique((img[..., 0].astype(np.uint32) << 16)
+                         | (img[..., 1].astype(np.uint32) << 8) | img[..., 2]))
+
+
 def test_plots_and_json_are_written(tracked, tmp_path):
     seq, out = tracked
     result = run_eval(out, seq / "groundtruth.tum", EvalOptions(align="se3"),
@@ -55,7 +62,7 @@ def test_plots_and_json_are_written(tracked, tmp_path):
         img = cv2.imread(str(p))
         assert img is not None, p
         sizes[p.name] = img.shape
-        assert len(np.unique(img.reshape(-1, 3), axis=0)) > 30, p  # more than a blank frame
+        assert _colours(img) > 30, p  # more than a blank frame
         assert (img != 255).any(axis=2).mean() > 0.03, p
     assert sizes == {"eval_trajectory.png": (800, 800, 3), "eval_errors_time.png": (900, 1000, 3),
                      "eval_errors_distance.png": (900, 1000, 3),
