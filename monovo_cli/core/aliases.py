@@ -209,9 +209,6 @@ def alias_variance(key, pyramid: list[np.ndarray], est, prediction_std: np.ndarr
 RIVAL_STEPS = (0.25, 0.5)  # the starts around a fit: these shares of the ground's distance
 RIVAL_DIRECTIONS = 8  # ... in as many directions along the plane
 RIVAL_SIDE = 64  # the rivals are fitted down to the finest pyramid level no larger than this
-RIVAL_MSD_RATIO = 10.0  # a rival fitting this many times worse than the best is told apart
-#                         (a real shelf, nearly noiseless: views turned 20 deg fit 36-500
-#                         times worse than the fit, yet within a quarter of the way to chance)
 RIVAL_ITERATIONS = 10  # ... with at most this many iterations a level
 RIVAL_TOLERANCE_PX = 0.05  # ... stopping at this step (px), bilinear: a coarse look, not a fit
 UNPINNED_SHARE = 0.1  # a prediction whose translation std is beyond this share of the
@@ -220,6 +217,9 @@ UNPINNED_SHARE = 0.1  # a prediction whose translation std is beyond this share 
 MOVED_SHARE = 0.1  # a rival this share of the distance from the fit is another minimum
 RIVAL_TURNS_DEG = (10.0, 20.0)  # and starts turned by these about each camera axis
 TURNED_DEG = 3.0  # ... a rival turned this far from the fit is another minimum
+RIVAL_MSD_RATIO = 10.0  # a rival fitting this many times worse than the best is told apart
+#                         (a real shelf, nearly noiseless: views turned 20 deg fit 36-500
+#                         times worse than the fit, yet within a quarter of the way to chance)
 
 
 def unpinned(prediction_std: np.ndarray, distance: float) -> bool:
@@ -238,11 +238,12 @@ def rivals(key, pyramid: list[np.ndarray], est, options) -> list[np.ndarray]:
     camera axis (a narrow view trades a turn for a step: the minima 10-40 deg off that a
     moved start does not reach), and run down to the finest level no larger than
     RIVAL_SIDE (``est``'s own pose refitted there too, for a like msd). Those that end at
-    least MOVED_SHARE of the distance or TURNED_DEG from the fit and within ALIAS_SHARE of
-    the way from the best msd to chance fit as well: on low texture the landscape is flat,
-    and the fit's minimum is one of many. None replaces the fit: a coarse msd a little lower is no
-    evidence (on the soak, switching to a clearly lower one mended as many scenarios as it
-    broke); the row says how far the others lie instead."""
+    least MOVED_SHARE of the distance or TURNED_DEG from the fit, within ALIAS_SHARE of the
+    way from the best msd to chance and within RIVAL_MSD_RATIO of the best fit as well: on
+    low texture the landscape is flat, and the fit's minimum is one of many. None replaces
+    the fit: a coarse msd a little lower is no evidence (on the soak, switching to a
+    clearly lower one mended as many scenarios as it broke); the row says how far the
+    others lie instead."""
     h = key.plane.distance
     basis = np.linalg.svd(np.eye(3) - np.outer(key.plane.normal, key.plane.normal))[0][:, :2]
     starts = [est.cur_from_key]
