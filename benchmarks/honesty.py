@@ -181,7 +181,9 @@ def shared_table(rows: list[tuple[str, dict]]) -> str:
             "| own: tx | ty | tz | rx | ry | rz |")
     lines = [head, "|" + " --- |" * 11]
     for name, r in rows:
-        lines.append(f"| {name} | {r['keyframes']} | {_cells(r['plane'])} | {_cells(r['own'])} |")
+        cells = f"{_cells(r['plane'])} | {_cells(r['own'])}" if r["keyframes"] else \
+            " | ".join(["-"] * 9)  # (re-anchoring on nearly every frame: no such keyframe)
+        lines.append(f"| {name} | {r['keyframes']} | {cells} |")
     return "\n".join(lines)
 
 
@@ -208,7 +210,8 @@ def main() -> None:
             "The keyframe plane's share, an error the rows of a keyframe share, held apart: per "
             "keyframe of at least three rows, the plane error the rows' true motions imply "
             "against the plane std reported (RMS over keyframes), and the spread of the rows' "
-            f"own part (error less the plane's, over the std less the plane's).\n\n"
+            "own part (error less the plane's, over the std less the plane's); - where no "
+            f"keyframe has three rows in a row (a drive that re-anchors on nearly every frame).\n\n"
             f"{shared_table(rows)}\n")
     print(text)
     if args.write_docs:
