@@ -258,26 +258,15 @@ def rivals(key, pyramid: list[np.ndarray], est, options) -> list[np.ndarray]:
                 starts.append(turn @ est.cur_from_key)
     coarse = replace(options, interpolation="linear", relaxation=1.0, max_iterations=RIVAL_ITERATIONS,
                      step_tolerance_px=RIVAL_TOLERANCE_PX)
-    return _as_good(key, pyramid, est, starts, coarse, RIVAL_SIDE)
-
-
-def _as_good(key, pyramid: list[np.ndarray], est, starts: list[np.ndarray], options,
-             side: int) -> list[np.ndarray]:
-    """The ``cur_from_key`` (4x4) of the fits from ``starts`` (``est``'s own pose first) down to
-    the finest level of ``pyramid`` no larger than ``side`` px (``options``) that end at least
-    MOVED_SHARE of the distance or TURNED_DEG from ``est``, within ALIAS_SHARE of the way
-    from the best msd to chance and within RIVAL_MSD_RATIO of the best; none where the first
-    does not converge."""
-    lv = _level_within(pyramid, len(key.levels), side)
+    lv = _level_within(pyramid, len(key.levels), RIVAL_SIDE)
     levels, pyr = key.levels[lv:], pyramid[lv:]
-    fits = [estimate_motion(levels, pyr, s, options=options, gain=est.gain, bias=est.bias)
+    fits = [estimate_motion(levels, pyr, s, options=coarse, gain=est.gain, bias=est.bias)
             for s in starts]
     ok = [f for f in fits if f.converged and np.isfinite(f.msd)]
     if not ok or not fits[0].converged:
         return []
     best = min(f.msd for f in ok)
     chance = levels[0].intensity_variance
-    h = key.plane.distance
     return [f.cur_from_key for f in ok
             if (_apart(est.cur_from_key, f.cur_from_key) >= MOVED_SHARE * h
                 or _turned(est.cur_from_key, f.cur_from_key) >= np.radians(TURNED_DEG))
