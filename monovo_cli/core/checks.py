@@ -185,10 +185,10 @@ class FitChecks:
 
 
 def step_too_large(world_from_prev: np.ndarray, key: Keyframe, cur_from_key: np.ndarray,
-                   options: TrackOptions) -> str:
+                   options: TrackOptions, frames: int = 1) -> str:
     """Why the frame's step from the previous pose ``world_from_prev`` (4x4) to its pose
-    ``cur_from_key`` (4x4) against ``key`` is beyond ``options``' maximum step, or beyond
-    MAX_TILT_STEP_DEG of the ground's tilt, or ''.
+    ``cur_from_key`` (4x4) against ``key``, ``frames`` frames later, is beyond ``options``'
+    maximum step, or beyond MAX_TILT_STEP_DEG of the ground's tilt, per frame, or ''.
 
     The tilt bound holds whatever the options: a camera that sees the ground does not turn
     its view of it by tens of degrees from one frame to the next (a rover's jerks on rocks
@@ -201,12 +201,13 @@ def step_too_large(world_from_prev: np.ndarray, key: Keyframe, cur_from_key: np.
     step = se3_inv(world_from_prev) @ world_from_cur
     normal = (se3_inv(world_from_prev) @ key.world_from_key)[:3, :3] @ key.plane.normal
     tilt = np.degrees(np.arccos(np.clip(normal @ (step[:3, :3].T @ normal), -1.0, 1.0)))
-    if tilt > MAX_TILT_STEP_DEG:
-        return f"the ground's tilt changed by {tilt:.0f} deg in one frame"
-    if o.max_step_m is not None and np.linalg.norm(step[:3, 3]) > o.max_step_m:
+    span = "in one frame" if frames == 1 else f"in {frames} frames"
+    if tilt > MAX_TILT_STEP_DEG * frames:
+        return f"the ground's tilt changed by {tilt:.0f} deg {span}"
+    if o.max_step_m is not None and np.linalg.norm(step[:3, 3]) > o.max_step_m * frames:
         return f"step beyond the maximum step {o.max_step_m} m"
     if o.max_step_deg is not None and \
-            np.degrees(np.linalg.norm(so3_log(step[:3, :3]))) > o.max_step_deg:
+            np.degrees(np.linalg.norm(so3_log(step[:3, :3]))) > o.max_step_deg * frames:
         return f"step beyond the maximum step {o.max_step_deg} deg"
     return ""
 

@@ -18,7 +18,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from monovo_cli.core.checks import FitChecks
+from monovo_cli.core.checks import FitChecks, step_too_large
 from monovo_cli.core.estimator.estimate import Estimate, estimate_motion
 from monovo_cli.core.frame_std import FrameResult, from_predicted
 from monovo_cli.core.keyframe import Keyframe
@@ -83,7 +83,9 @@ def resolve_gap(index: int, image: np.ndarray, pyr: list[np.ndarray], good: Good
     ``cur_from_key`` against ``ref``, with ``brightness`` the gain and bias), then with the
     capture's starts (``checks``), its features matched against the good frame's image
     (``mask``, ``region`` the feature hypothesis'). ``(ref, the estimate)`` if one passes the
-    checks, else None."""
+    checks, the step from the good frame among them (the one-frame bound once per frame of
+    the gap: a fit across a gap, on little or repetitive texture, can land 100-135 deg
+    turned), else None."""
     options = checks.options
     recovery = LostFrameRecovery(checks.camera, options=options.features, mask=mask, region=region)
     recovery.anchored(good.image)
@@ -93,6 +95,9 @@ def resolve_gap(index: int, image: np.ndarray, pyr: list[np.ndarray], good: Good
     if reason:
         est, reason = checks.capture(index, ref, image, pyr, predicted, est, reason,
                                      predicted=predicted, recovery=recovery, brightness=brightness)
+    if not reason:
+        reason = step_too_large(good.world_from_cur, ref, orthonormalize(est.cur_from_key), options,
+                                frames=index - good.index)
     return None if reason else (ref, est)
 
 
