@@ -292,7 +292,7 @@ class Odometry:
             motion_change(prev_from_cur, self._motion_to(key, orthonormalize(tracked.cur_from_key)))]
         cov, model = accepted_covariance(
             self._motion_cov.relative(est, key.levels[0], key.plane, self._plane.reported_covariance,
-                                      self._cur_from_key_prev, prev_from_cur),
+                                      self._cur_from_key_prev, prev_from_cur, pyr[0]),
             jumps + [half for half, _ in spread], None if reanchor else self._handed_over,
             self._gap_variance, prev_from_cur)
         self._handed_over, self._gap_variance = None, np.zeros(6)

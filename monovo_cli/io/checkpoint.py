@@ -149,7 +149,7 @@ def state_types() -> Registry:
         "cur_from_key": _POSE, "covariance": _f(6, 6), "residuals": _f4(None, optional=True),
         "valid": ArraySpec("|b1", (None,), optional=True), "weights": _f4(None, optional=True),
         "normal": _f(None, None, optional=True)})
-    types.add(MotionCovariance, ("_cov_prev", "_sens_prev", "_sample", "_sens_of"),
+    types.add(MotionCovariance, ("_cov_prev", "_sens_prev", "_sample", "_sens_of", "_noise_of"),
               arrays={"_cov_prev": _f(6, 6), "_sens_prev": _f(6, 3)})
     types.add(PlaneTracker, _PLANE_TRACKER, arrays={
         "covariance": _f(3, 3), "_disputed_tilt": _f(2, 2, optional=True),

@@ -40,6 +40,7 @@ from collections import deque
 import numpy as np
 
 from monovo_cli.core.estimator.estimate import Estimate, KeyLevel
+from monovo_cli.core.estimator.gradient_noise import noise_factor
 from monovo_cli.core.plane.belief import (
     EXACT_STD,
     PlaneBelief,
@@ -114,6 +115,7 @@ class MotionCovariance:
         self._sens_prev = np.zeros((6, 3))
         self._sample: tuple[KeyLevel, tuple] | None = None  # (level, its point_sample)
         self._sens_of: tuple[Estimate, np.ndarray] | None = None  # (estimate, its sensitivity)
+        self._noise_of: tuple[KeyLevel, float] | None = None  # (level, its noise_factor)
 
     def sensitivity(self, est: Estimate, level: KeyLevel, plane: Plane) -> np.ndarray | None:
         """:func:`plane_sensitivity` of ``est`` (against the keyframe of finest level ``level``
@@ -131,20 +133,27 @@ class MotionCovariance:
 
     def relative(self, est: Estimate, level: KeyLevel, plane: Plane,
                  plane_covariance: np.ndarray | None, cur_from_key_prev: np.ndarray,
-                 prev_from_cur: np.ndarray) -> np.ndarray:
+                 prev_from_cur: np.ndarray, image: np.ndarray | None = None) -> np.ndarray:
         """(6, 6) covariance of (t, rotvec) of ``prev_from_cur`` (m, rad), the frame estimated
         as ``est`` against the keyframe of finest level ``level`` and ``plane`` (covariance
         ``plane_covariance`` (3, 3) in its chart; None: exact); the previous frame was at
-        ``cur_from_key_prev`` (4x4). Becomes the previous frame for the next call."""
+        ``cur_from_key_prev`` (4x4). Becomes the previous frame for the next call. Given the
+        frame's ``image`` (``level``'s resolution), the estimate's noise is widened by the
+        keyframe gradients' own (:func:`~monovo_cli.core.estimator.gradient_noise.noise_factor`,
+        measured on the keyframe's first frame given one)."""
         S = None if plane_covariance is None else self.sensitivity(est, level, plane)
         sens = np.zeros((6, 3)) if S is None else S
         A = adjoint(cur_from_key_prev)  # Ad(prev_from_key)
         D = sens - self._sens_prev
-        inner = est.covariance + self._cov_prev
+        if image is not None and (self._noise_of is None or self._noise_of[0] is not level):
+            self._noise_of = level, noise_factor(level, plane, image, est.cur_from_key, est.weights)
+        noise = est.covariance * (1.0 if self._noise_of is None or self._noise_of[0] is not level
+                                  else self._noise_of[1] ** 2)
+        inner = noise + self._cov_prev
         if plane_covariance is not None:
             inner = inner + D @ plane_covariance @ D.T
         cov = output_covariance(A @ inner @ A.T, prev_from_cur)
-        self._cov_prev, self._sens_prev = est.covariance, sens
+        self._cov_prev, self._sens_prev = noise, sens
         return 0.5 * (cov + cov.T)
 
 
