@@ -73,14 +73,18 @@ def plane_shares() -> Iterator[dict[int, dict]]:
     seen: dict = {}
     relative, accept = MotionCovariance.relative, odometry.Odometry._accept
 
-    def recording_relative(self, est, level, plane, plane_cov, cur_from_key_prev, prev_from_cur):
+    def recording_relative(self, est, level, plane, plane_cov, cur_from_key_prev, prev_from_cur,
+                           image=None):
         S = None if plane_cov is None else self.sensitivity(est, level, plane)
+        G = None
         if S is not None:
             to_output = np.eye(6)
             to_output[:3, 3:] = -skew(prev_from_cur[:3, 3])
-            seen.update(S=S, C=np.array(est.covariance), P=np.array(plane_cov),
-                        G=to_output @ adjoint(cur_from_key_prev) @ (S - self._sens_prev))
-        return relative(self, est, level, plane, plane_cov, cur_from_key_prev, prev_from_cur)
+            G = to_output @ adjoint(cur_from_key_prev) @ (S - self._sens_prev)
+        out = relative(self, est, level, plane, plane_cov, cur_from_key_prev, prev_from_cur, image)
+        if S is not None:  # the estimate's noise as reported (relative keeps it, widened)
+            seen.update(S=S, C=np.array(self._cov_prev), P=np.array(plane_cov), G=G)
+        return out
 
     def recording_accept(self, index, *args, **kwargs):
         seen.clear()
