@@ -39,7 +39,12 @@ def noise_factor(level: KeyLevel, plane: Plane, image: np.ndarray, cur_from_key:
     fit ``cur_from_key`` (4x4) of ``image`` (the current frame at ``level``'s resolution)
     against ``level`` (points near ``plane``, keyframe camera), its robust ``weights`` (N,;
     None: all 1): the module docstring's f over VIEW_SLACK where that is above 1, capped at
-    MAX_FACTOR."""
+    MAX_FACTOR.
+
+    A frame darker or brighter than the keyframe has its gradients scaled by the change: the
+    shared part is divided by the ratio of the two frames' intensity spreads at the points
+    (the same camera's noise on both sides: the fit's gain, a regression slope, shrinks with
+    the keyframe's noise just as the gradients' share does, and would undo the factor)."""
     pts = level.points
     n = len(pts)
     if n == 0:
@@ -65,12 +70,15 @@ def noise_factor(level: KeyLevel, plane: Plane, image: np.ndarray, cur_from_key:
         return 1.0
     p = p[inside].astype(np.float32)
     # (one row per point: cv2.remap takes maps of fewer than 32767 rows, and MAX_POINTS are)
-    g_cur = np.stack([cv2.remap(g, p[:, :1], p[:, 1:], cv2.INTER_CUBIC,
-                                borderMode=cv2.BORDER_REPLICATE)[:, 0] for g in (gx, gy)], 1)
+    i_cur, gcx, gcy = (cv2.remap(g, p[:, :1], p[:, 1:], cv2.INTER_CUBIC,
+                                 borderMode=cv2.BORDER_REPLICATE)[:, 0] for g in (image, gx, gy))
+    g_cur = np.stack([gcx, gcy], 1)
+    i_key = pts.intensity[take][inside]
+    gain = float(np.std(i_cur)) / max(float(np.std(i_key)), 1e-6)
     ax, ay = cols[0][inside], cols[1][inside]
     g_warp = np.stack([(ax * g_cur).sum(1), (ay * g_cur).sum(1)], 1)  # A^T g_cur
     gk, ww = g_key[inside], w[inside]
-    shared = float(ww @ (gk * g_warp).sum(1))
+    shared = float(ww @ (gk * g_warp).sum(1)) / max(gain, 1e-6)
     total = float(ww @ (gk * gk).sum(1))
     if shared * MAX_FACTOR * VIEW_SLACK <= total:
         return MAX_FACTOR

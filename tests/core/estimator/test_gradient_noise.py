@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from monovo_cli.core.estimator.estimate import estimate_motion
 from monovo_cli.core.estimator.gradient_noise import noise_factor
@@ -45,9 +46,15 @@ def _fits(cfg, imgs, contrast: float, sigma: float):
 
 def test_textured_frames_keep_their_std(synth_drive):
     """The drive's texture at noise variance 10: the keyframe's gradients are the texture's,
-    and the factor is 1 on every draw."""
+    and the factor is 1 on every draw; with the second frame at half the contrast too (its
+    gradients are halved, not noisier: without the intensity spreads' ratio the factor read
+    1.74 on the first draw)."""
     cfg, imgs, _ = _pair(synth_drive)
     for est, key, pyr in _fits(cfg, imgs, 1.0, np.sqrt(10.0)):
+        assert noise_factor(key.levels[0], key.plane, pyr[0], est.cur_from_key, est.weights) == 1.0
+    darker = [imgs[0], 0.5 * imgs[1] + 64.0]
+    for est, key, pyr in _fits(cfg, darker, 1.0, np.sqrt(10.0)):
+        assert est.gain == pytest.approx(0.5, abs=0.02)
         assert noise_factor(key.levels[0], key.plane, pyr[0], est.cur_from_key, est.weights) == 1.0
 
 
