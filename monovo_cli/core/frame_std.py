@@ -23,7 +23,14 @@ from monovo_cli.core.keyframe import Keyframe
 from monovo_cli.core.options import EstimatorOptions
 from monovo_cli.core.recovery.gap import GapClosure
 from monovo_cli.core.status import FrameStatus
-from monovo_cli.geometry.lie import motion_change, orthonormalize, skew, so3_log
+from monovo_cli.geometry.lie import (
+    adjoint,
+    motion_change,
+    orthonormalize,
+    output_covariance,
+    skew,
+    so3_log,
+)
 
 PREDICTION_WINDOW = 30  # accepted frames whose motion changes measure the prediction's error
 STANDING_SHARE = 0.5  # a lost frame's least std of each translation, x distance
@@ -169,29 +176,37 @@ def lost_row(index: int, timestamp: float, world_from_cur: np.ndarray, prev_from
                        FrameStatus.LOST, std, np.diag(std ** 2), keyframe, *brightness, reason)
 
 
-def accepted_covariance(cov: np.ndarray, differences: Sequence[np.ndarray],
+def accepted_covariance(cov: np.ndarray, differences: Sequence[tuple[np.ndarray, np.ndarray]],
                         handed_over: np.ndarray | None, gap_variance: np.ndarray,
                         prev_from_cur: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(covariance, model error)`` (6, 6) of an accepted frame's motion ``prev_from_cur``
     (4x4) before the unforeseen change: the noise's ``cov``, the model error its row measured
-    (the sum of the outer products of ``differences`` (6,): the correction its terrain grid
-    made, its split halves' spreads), the model error ``handed_over`` by the re-anchor before
-    it (None: none; a row that re-anchors in turn states its own) and what a previous pose
-    known only to the prediction leaves (``gap_variance`` (6,), :func:`from_predicted`;
-    zeros: none).
+    (``differences``, pairs of a difference (6,) and the variance (6,) its own noise gives it:
+    the correction its terrain grid made, its split halves' spreads), the model error
+    ``handed_over`` by the re-anchor before it (None: none; a row that re-anchors in turn
+    states its own) and what a previous pose known only to the prediction leaves
+    (``gap_variance`` (6,), :func:`from_predicted`; zeros: none).
+
+    The row counts, on each axis, what a difference's square holds beyond its noise's
+    variance: the halves of a thinned split measure a rotation no better than their noise
+    on a drive that re-anchors on every frame, and counting that noise made its rotations'
+    std 2-2.5x too large (``benchmarks.honesty``, MER drives).
 
     The first motion against a keyframe: its points sit on the plane (or the grid) the
     re-anchor fitted, with that fit's model error, and over one frame's baseline the robust
     weights do not yet set the unmodelled relief apart (on rocks: 2.5-2.8 mdeg off on 5 cm,
     6-8.5 std, where the rows after it are within 2). It carries the error its re-anchor
-    measured on its own row (counting both made a MER drive's std, which re-anchors on
-    nearly every frame, 1.4-1.9x wider still)."""
-    model = np.zeros((6, 6))
-    for d in differences:
+    measured on its own row, the whole differences (the returned model error; with only their
+    part beyond the noise, a rock drive's frame 54 is 5.0 std off; counting both made a MER
+    drive's std, which re-anchors on nearly every frame, 1.4-1.9x wider still)."""
+    own, model = np.zeros((6, 6)), np.zeros((6, 6))
+    for d, variance in differences:
         model += np.outer(d, d)
+        beyond = np.sign(d) * np.sqrt(np.clip(d ** 2 - variance, 0.0, None))
+        own += np.outer(beyond, beyond)
     if handed_over is not None:
         cov = cov + handed_over
-    cov = cov + model
+    cov = cov + own
     if gap_variance.any():  # the previous pose was only predicted: its error is ours
         cov = cov + from_predicted(gap_variance, prev_from_cur)
     return cov, model
@@ -199,18 +214,22 @@ def accepted_covariance(cov: np.ndarray, differences: Sequence[np.ndarray],
 
 def split_spread(key: Keyframe, pyr: list[np.ndarray], est: Estimate, options: EstimatorOptions,
                  max_points: int, motion_to: Callable[[Keyframe, np.ndarray], np.ndarray]
-                 ) -> list[tuple[np.ndarray, np.ndarray]]:
+                 ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Per split of ``est``'s points whose halves both converged
     (:func:`~monovo_cli.core.estimator.split.split_half_fits`), the difference between
     the halves' motions (6,) (m, rad; as motion.csv's, ``motion_to(key, cur_from_key)`` the
-    motion to a pose against ``key``) and between their rotations in the current camera
-    (3,) (rad): the model error of a frame captured across a wide change of view, which the
-    noise-only covariance does not count. The whole difference, not half of it: that error
-    is shared by the halves, not averaged away."""
+    motion to a pose against ``key``), the variance (6,) the two halves' noise gives it, and
+    the difference between their rotations in the current camera (3,) (rad): the model
+    error of a frame captured across a wide change of view, which the noise-only covariance
+    does not count (:func:`accepted_covariance`). The whole difference, not half of it: that
+    error is shared by the halves, not averaged away."""
     out = []
-    for a, b in split_half_fits(key.levels[0], pyr[0], est, options, max_points):
-        a, b = orthonormalize(a), orthonormalize(b)
-        out.append((motion_change(motion_to(key, a), motion_to(key, b)),
+    prev_from_key = motion_to(key, np.eye(4))
+    A = adjoint(prev_from_key)
+    for fa, fb in split_half_fits(key.levels[0], pyr[0], est, options, max_points):
+        a, b = orthonormalize(fa.cur_from_key), orthonormalize(fb.cur_from_key)
+        noise = output_covariance(A @ (fa.covariance + fb.covariance) @ A.T, motion_to(key, a))
+        out.append((motion_change(motion_to(key, a), motion_to(key, b)), np.diag(noise).copy(),
                     so3_log(a[:3, :3] @ b[:3, :3].T)))
     return out
 

@@ -288,12 +288,12 @@ class Odometry:
         world_from_cur = orthonormalize(key.world_from_key @ se3_inv(cur_from_key))
         prev_from_cur = orthonormalize(se3_inv(self._world_from_prev) @ world_from_cur)
         # the model error: the correction the terrain grid made, the split halves' spread
-        jumps = [] if terrain_grid is None else [
-            motion_change(prev_from_cur, self._motion_to(key, orthonormalize(tracked.cur_from_key)))]
+        jumps = [] if terrain_grid is None else [(motion_change(
+            prev_from_cur, self._motion_to(key, orthonormalize(tracked.cur_from_key))), 0.0)]
         cov, model = accepted_covariance(
             self._motion_cov.relative(est, key.levels[0], key.plane, self._plane.reported_covariance,
                                       self._cur_from_key_prev, prev_from_cur, pyr[0]),
-            jumps + [half for half, _ in spread], None if reanchor else self._handed_over,
+            jumps + [(half, noise) for half, noise, _ in spread], None if reanchor else self._handed_over,
             self._gap_variance, prev_from_cur)
         self._handed_over, self._gap_variance = None, np.zeros(6)
         motion = motion_change(prev_from_cur, np.eye(4))
@@ -320,7 +320,7 @@ class Odometry:
                                        None if terrain_grid is None else (terrain_grid, cur_from_key),
                                        nxt.link):
             status = FrameStatus.REANCHORED
-            self._plane.anchored_captured(nxt.plane, [w for _, w in spread])
+            self._plane.anchored_captured(nxt.plane, [w for *_, w in spread])
             self._handed_over = model if model.any() else None
         elif not recovering:  # (a recovering tracker whose new keyframe failed stays so)
             self._state = OdometryState.TRACKING

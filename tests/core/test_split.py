@@ -36,7 +36,7 @@ def test_the_halves_agree_where_the_plane_model_holds(synth_drive):
     pairs = split_half_fits(key.levels[0], pyr[0], est, opts.estimator)
     assert len(pairs) == 2
     for a, b in pairs:
-        D = a @ se3_inv(b)
+        D = a.cur_from_key @ se3_inv(b.cur_from_key)
         assert np.linalg.norm(D[:3, 3]) < 5e-4
         assert np.degrees(np.linalg.norm(so3_log(D[:3, :3]))) < 0.02
 

@@ -52,7 +52,7 @@ def split_half_fits(level: KeyLevel, image: np.ndarray, est: Estimate,
                                   gain=est.gain, bias=est.bias)
             if not fit.converged or fit.finest_iterations >= options.max_iterations:
                 break
-            pair.append(fit.cur_from_key)
+            pair.append(fit)
         if len(pair) == 2:
             out.append((pair[0], pair[1]))
     return out
