@@ -24,10 +24,9 @@ from monovo_cli.core.options import EstimatorOptions
 from monovo_cli.core.recovery.gap import GapClosure
 from monovo_cli.core.status import FrameStatus
 from monovo_cli.geometry.lie import (
-    adjoint,
     motion_change,
+    motion_covariance_of_key_twist,
     orthonormalize,
-    output_covariance,
     skew,
     so3_log,
 )
@@ -225,11 +224,11 @@ def split_spread(key: Keyframe, pyr: list[np.ndarray], est: Estimate, options: E
     error is shared by the halves, not averaged away."""
     out = []
     prev_from_key = motion_to(key, np.eye(4))
-    A = adjoint(prev_from_key)
     for fa, fb in split_half_fits(key.levels[0], pyr[0], est, options, max_points):
         a, b = orthonormalize(fa.cur_from_key), orthonormalize(fb.cur_from_key)
-        noise = output_covariance(A @ (fa.covariance + fb.covariance) @ A.T, motion_to(key, a))
-        out.append((motion_change(motion_to(key, a), motion_to(key, b)), np.diag(noise).copy(),
+        noise = motion_covariance_of_key_twist(fa.covariance + fb.covariance, prev_from_key,
+                                               motion_to(key, a))
+        out.append((motion_change(motion_to(key, a), motion_to(key, b)), np.diag(noise),
                     so3_log(a[:3, :3] @ b[:3, :3].T)))
     return out
 

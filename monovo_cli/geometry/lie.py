@@ -199,3 +199,13 @@ def output_covariance(cov_xi: np.ndarray, pose: np.ndarray) -> np.ndarray:
     A = np.eye(6)
     A[:3, 3:] = -skew(pose[:3, 3])
     return A @ cov_xi @ A.T
+
+
+def motion_covariance_of_key_twist(cov_xi: np.ndarray, prev_from_key: np.ndarray,
+                      prev_from_cur: np.ndarray) -> np.ndarray:
+    """Covariance (6, 6) of (t, rotvec) of the motion ``prev_from_cur = prev_from_key @
+    key_from_cur`` (4x4 each) from that of the twist ``xi`` of ``key_from_cur`` (``cov_xi``,
+    ``key_from_cur_true = exp(xi^) key_from_cur``): the motion's left twist is
+    ``Ad(prev_from_key) xi``."""
+    A = adjoint(prev_from_key)
+    return output_covariance(A @ cov_xi @ A.T, prev_from_cur)

@@ -47,7 +47,7 @@ from monovo_cli.core.plane.belief import (
     measured_tilt,
     to_chart,
 )
-from monovo_cli.geometry.lie import adjoint, output_covariance
+from monovo_cli.geometry.lie import motion_covariance_of_key_twist
 from monovo_cli.geometry.plane import Plane, tangent_basis
 
 TILT_MODEL_ERROR_DEG = 0.5  # each tilt's model error before a re-anchor has measured it (deg)
@@ -143,7 +143,6 @@ class MotionCovariance:
         measured on the keyframe's first frame given one)."""
         S = None if plane_covariance is None else self.sensitivity(est, level, plane)
         sens = np.zeros((6, 3)) if S is None else S
-        A = adjoint(cur_from_key_prev)  # Ad(prev_from_key)
         D = sens - self._sens_prev
         if image is not None and (self._noise_of is None or self._noise_of[0] is not level):
             self._noise_of = level, noise_factor(level, plane, image, est.cur_from_key, est.weights)
@@ -152,7 +151,8 @@ class MotionCovariance:
         inner = noise + self._cov_prev
         if plane_covariance is not None:
             inner = inner + D @ plane_covariance @ D.T
-        cov = output_covariance(A @ inner @ A.T, prev_from_cur)
+        # (cur_from_key_prev is prev_from_key)
+        cov = motion_covariance_of_key_twist(inner, cur_from_key_prev, prev_from_cur)
         self._cov_prev, self._sens_prev = noise, sens
         return 0.5 * (cov + cov.T)
 
