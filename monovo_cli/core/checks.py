@@ -5,9 +5,10 @@ must pass before the tracker accepts it.
 search of one frame reads (the options, the frame's noise, the checks the tracker applies):
 the inlier score that ranks candidate fits, the frame's fit (:meth:`FitChecks.fit`) and the
 capture (:meth:`FitChecks.capture`) that tries the starts beyond the prediction's reach. The
-other functions test a frame before it is fitted (:func:`constant_or_invalid`), its step
-(:func:`step_too_large`) and whether it should anchor the next keyframe
-(:func:`needs_reanchor`); :class:`OdometryState` decides where a frame's fit starts.
+other functions test a frame before it is fitted (:func:`constant_or_invalid`), the pose a
+fit gives (:func:`off_the_ground`), its step (:func:`step_too_large`) and whether it should
+anchor the next keyframe (:func:`needs_reanchor`); :class:`OdometryState` decides where a
+frame's fit starts.
 docs/algorithm.md section 4 gives the rules.
 """
 
@@ -21,6 +22,7 @@ from functools import partial
 import numpy as np
 
 from monovo_cli.core.estimator.estimate import Estimate, coarse_search, estimate_motion
+from monovo_cli.core.estimator.ground import rectangle_corners
 from monovo_cli.core.estimator.robust import inlier_fraction
 from monovo_cli.core.frame_std import robust_msd
 from monovo_cli.core.keyframe import Keyframe, footprint
@@ -182,6 +184,20 @@ class FitChecks:
             if est is None or (not why, self.score(cand)) > (not reason, self.score(est)):
                 est, reason = cand, why
         return est, reason
+
+
+def off_the_ground(camera: PinholeCamera, region: tuple[int, int, int, int], key: Keyframe,
+                   cur_from_key: np.ndarray) -> str:
+    """Why the pose ``cur_from_key`` (4x4) against ``key`` cannot be the camera's, or '': the
+    ground is the region's (init.yaml's ``ground.region``, the whole frame by default), so the
+    region's rays meet the keyframe's plane in front of the camera at every pose it takes,
+    as they must where a keyframe is anchored. A fit that leaves the camera below the
+    ground, or tilts its view of it past the horizon within the region, converged to a wrong
+    minimum (on the few points still in view, whose intensities fit it)."""
+    corners = rectangle_corners(camera, key.plane.in_frame(cur_from_key), region)
+    if not np.all(np.isfinite(corners)) or np.any(corners[:, 2] <= 0):
+        return "the ground would not fill the region in front of the camera"
+    return ""
 
 
 def step_too_large(world_from_prev: np.ndarray, key: Keyframe, cur_from_key: np.ndarray,

@@ -33,6 +33,7 @@ from monovo_cli.core.checks import (
     constant_or_invalid,
     divergence,
     needs_reanchor,
+    off_the_ground,
     step_too_large,
 )
 from monovo_cli.core.estimator.estimate import Estimate
@@ -153,8 +154,7 @@ class Odometry:
 
     @property
     def ground_planar(self) -> bool:
-        """The ground seen so far is a plane (:attr:`PlaneTracker.ground_planar`): hindsight
-        may re-read motions against the tilts it solves."""
+        """The ground so far is a plane (PlaneTracker.ground_planar): hindsight may re-read."""
         return self._plane.ground_planar
 
     @property
@@ -374,9 +374,10 @@ class Odometry:
         return FitChecks(self.options, self.camera, self._sigma, self._failure)
 
     def _failure(self, est: Estimate, key: Keyframe) -> str:
-        """Why ``est`` (against ``key``) cannot be trusted, or '' (the divergence checks,
-        :func:`~monovo_cli.core.checks.divergence`): every fit of the frame passes here."""
-        return divergence(est, self.options, self._sigma, self._chance_msd, self._recent_msd)
+        """Why ``est`` (against ``key``) cannot be trusted, or '' (:mod:`~monovo_cli.core.checks`'
+        divergence and ground checks): every fit of the frame passes here."""
+        return divergence(est, self.options, self._sigma, self._chance_msd, self._recent_msd) \
+            or off_the_ground(self.camera, self.region, key, est.cur_from_key)
 
     def _settle_plane(self, index: int, pyr: list[np.ndarray], est: Estimate) -> Estimate:
         """PlaneTracker.test; a corrected plane's keyframe is kept if its estimate passes, from
