@@ -284,3 +284,12 @@ def rival_variance(poses: list[np.ndarray], motion_to, motion: np.ndarray) -> np
         return np.zeros((6, 6))
     d = np.array([motion_change(motion_to(pose), motion) for pose in poses])
     return np.diag(np.max(d ** 2, axis=0))
+
+
+def pose_doubt(key, pyramid: list[np.ndarray], est, prediction_std: np.ndarray, motion_to,
+               motion: np.ndarray, found, options) -> np.ndarray:
+    """(6, 6) the doubt on which minimum an accepted fit ``est`` is: its aliases'
+    (:func:`alias_variance`) and its rivals' (``found``, :func:`rival_variance`) variances, the
+    arguments theirs."""
+    return alias_variance(key, pyramid, est, prediction_std, motion_to, motion, options) \
+        + rival_variance(found, motion_to, motion)

@@ -149,10 +149,11 @@ def refuted(from_prediction: Estimate | None, est: Estimate, captured: bool) -> 
 
 def from_predicted(variance: np.ndarray, prev_from_cur: np.ndarray) -> np.ndarray:
     """(6, 6) what a previous pose known only to ``variance`` (6,: m^2, rad^2, in its own
-    frame; the lost frames' predictions) adds to the covariance of the motion ``prev_from_cur``
-    (4x4) measured from it: with that pose off by ``(v, w)``, the motion is off by
-    ``(-v + t x w, -w)``, so its rotation's doubt reaches the translation by the lever ``t``
-    (after a turn predicted where the rover drove, a 0.7 m step is 0.2 m off sideways)."""
+    frame; the lost frames' predictions, an accepted fit's aliases) adds to the covariance
+    of the motion ``prev_from_cur`` (4x4) measured from it: with that pose off by ``(v, w)``,
+    the motion is off by ``(-v + t x w, -w)``, so its rotation's doubt reaches the
+    translation by the lever ``t`` (after a turn predicted where the rover drove, a 0.7 m
+    step is 0.2 m off sideways)."""
     t = prev_from_cur[:3, 3]
     J = np.zeros((6, 6))
     J[:3, :3] = -np.eye(3)
@@ -183,8 +184,11 @@ def accepted_covariance(cov: np.ndarray, differences: Sequence[tuple[np.ndarray,
     (``differences``, pairs of a difference (6,) and the variance (6,) its own noise gives it:
     the correction its terrain grid made, its split halves' spreads), the model error
     ``handed_over`` by the re-anchor before it (None: none; a row that re-anchors in turn
-    states its own) and what a previous pose known only to the prediction leaves
-    (``gap_variance`` (6,), :func:`from_predicted`; zeros: none).
+    states its own) and what the previous pose's doubt beyond its noise leaves
+    (``gap_variance`` (6,), :func:`from_predicted`; zeros: none): a pose known only to the
+    prediction, or one whose fit had aliases or rivals (which minimum it is: on a
+    checkerboard a row one period off, the next row measured against the same keyframe
+    comes back by a period that its own noise-only std called 0.005 m, 41 std).
 
     The row counts, on each axis, what a difference's square holds beyond its noise's
     variance: the halves of a thinned split measure a rotation no better than their noise
@@ -206,7 +210,7 @@ def accepted_covariance(cov: np.ndarray, differences: Sequence[tuple[np.ndarray,
     if handed_over is not None:
         cov = cov + handed_over
     cov = cov + own
-    if gap_variance.any():  # the previous pose was only predicted: its error is ours
+    if gap_variance.any():  # the previous pose's doubt: its error is ours
         cov = cov + from_predicted(gap_variance, prev_from_cur)
     return cov, model
 

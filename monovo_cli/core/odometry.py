@@ -26,7 +26,7 @@ from functools import partial
 
 import numpy as np
 
-from monovo_cli.core.aliases import alias_variance, rival_variance, rivals, unpinned, with_periods
+from monovo_cli.core.aliases import pose_doubt, rivals, unpinned, with_periods
 from monovo_cli.core.checks import (
     FitChecks,
     OdometryState,
@@ -125,7 +125,7 @@ class Odometry:
         self._motion_changes: deque[np.ndarray] = deque(maxlen=PREDICTION_WINDOW)
         self._last_motion: np.ndarray | None = None
         self._last_std, self._last_accepted = np.zeros(6), -2
-        # the variance the lost frames since the last accepted one left in the previous pose
+        # the previous pose's variance beyond its noise (lost frames since; aliases, rivals)
         self._gap_variance = np.zeros(6)
         self._gap_steps: list[np.ndarray] = []  # their predicted motions' variances (6,)
         #: (6, 6) the model error the last re-anchor measured on its own row (its terrain
@@ -300,9 +300,10 @@ class Odometry:
         if not refuted:
             cov = cov + np.diag(self._unforeseen(motion, np.sqrt(np.clip(np.diag(cov), 0.0, None)),
                                                  index))
-        cov = cov + alias_variance(key, pyr, est, self._prior(index), partial(self._motion_to, key),
-                                   prev_from_cur, self.options.estimator) \
-            + rival_variance(rivals, partial(self._motion_to, key), prev_from_cur)
+        # the next motion against this keyframe inherits the doubt (a re-anchor's does not)
+        doubt = pose_doubt(key, pyr, est, self._prior(index), partial(self._motion_to, key),
+                           prev_from_cur, rivals, self.options.estimator)
+        cov, self._gap_variance = cov + doubt, np.diag(doubt).copy()
         std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
         if self._last_motion is not None and self._last_accepted == index - 1:
             self._motion_changes.append(np.abs(motion - self._last_motion))
@@ -319,7 +320,7 @@ class Odometry:
         if reanchor and self._reanchor(index, image, pyr, world_from_cur, nxt.plane, nxt.covariance,
                                        None if terrain_grid is None else (terrain_grid, cur_from_key),
                                        nxt.link):
-            status = FrameStatus.REANCHORED
+            status, self._gap_variance = FrameStatus.REANCHORED, np.zeros(6)
             self._plane.anchored_captured(nxt.plane, [w for *_, w in spread])
             self._handed_over = model if model.any() else None
         elif not recovering:  # (a recovering tracker whose new keyframe failed stays so)
@@ -416,8 +417,7 @@ class Odometry:
         return True
 
     def _motion_to(self, key: Keyframe, cur_from_key: np.ndarray) -> np.ndarray:
-        """The motion (4x4, T_{k-1}_k) from the previous pose to ``cur_from_key`` (4x4) against
-        ``key``: an alternative fit's, beside the frame's own."""
+        """The motion (4x4, T_{k-1}_k) from the previous pose to ``cur_from_key`` against ``key``."""
         return se3_inv(self._world_from_prev) @ key.world_from_key @ se3_inv(cur_from_key)
 
     def _resolve_gap(self, index: int, image: np.ndarray, pyr: list[np.ndarray]

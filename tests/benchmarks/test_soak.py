@@ -222,3 +222,16 @@ def test_a_wrong_minimum_after_a_loss_on_noisy_gravel_says_so(tmp_path):
     assert (sc.width, sc.texture, sc.frames) == (128, "gravel", 20)
     verdict = _tracked(sc, tmp_path)
     assert "untrusted" not in verdict.failures, "\n".join(verdict.details)
+
+
+def test_a_row_after_one_a_period_off_on_a_checkerboard_states_that_period(tmp_path):
+    """Seed 40's scenario 83, cut to 9 frames (192x144 checkerboard on rocks at noise
+    variance 28, turns of 19.6 deg a frame): frames 6 and 7 converged a period off (0.15-0.2
+    m, their std covering it with their aliases' variance), and frame 8, fitted against the
+    same keyframe, came back: its motion was 0.19 m off in tz with a std of 0.0045 m (41
+    std), the previous pose's doubt nowhere in it. That doubt is now the next motion's too
+    (``frame_std.from_predicted``, as a lost frame's is); the drift stays."""
+    sc = replace(draw(40, 83), frames=9)
+    assert (sc.texture, sc.ground, sc.width, sc.height) == ("checker", "rocks", 192, 144)
+    verdict = _tracked(sc, tmp_path)
+    assert set(verdict.failures) <= {"drift"}, "\n".join(verdict.details)
