@@ -33,6 +33,8 @@ from monovo_cli.geometry.lie import se3_inv, so3_log
 from monovo_cli.image.pyramid import extend_pyramid
 
 CHANCE_SHARE = 0.5  # a fit leaving half the keyframe's intensity variance is no fit
+RETRY_MSD = 1.25  # a fit from the prediction with a robust msd this far above the recent
+#                  frames' (and the noise's) is re-tried from the capture's starts
 MAX_TILT_STEP_DEG = 30.0  # the most the ground's tilt seen from the camera turns in one frame
 
 
@@ -65,14 +67,18 @@ def divergence(est: Estimate, options: TrackOptions, sigma: float, chance_msd: f
     # the two images' noise): far above both, it does not hold. Before there are any the
     # check does not apply: on real images the plane model's own error (lens, parallax,
     # lighting) can exceed the noise many times over from frame 1 on.
-    if recent_msd:
-        noise = 2.0 * sigma ** 2
-        baseline = max(float(np.median(recent_msd)), noise, 1.0)
-        if robust_msd(est) > options.msd_factor * baseline:
-            return "robust mean squared difference rose sharply"
+    if recent_msd and robust_msd(est) > options.msd_factor * msd_baseline(sigma, recent_msd):
+        return "robust mean squared difference rose sharply"
     if est.finest_iterations >= options.estimator.max_iterations:
         return "no convergence within the iteration cap"
     return ""
+
+
+def msd_baseline(sigma: float, recent_msd: Sequence[float]) -> float:
+    """What a good fit's robust msd is now: the recent accepted frames' median
+    (``recent_msd``, not empty), but at least the two images' noise (``sigma`` the noise
+    sigma of the frame's differences) and 1."""
+    return max(float(np.median(recent_msd)), 2.0 * sigma ** 2, 1.0)
 
 
 def score(est: Estimate, sigma: float) -> float:
@@ -87,12 +93,14 @@ class FitChecks:
     """The search of one frame: ``options`` the tracking settings, ``camera`` the frames',
     ``sigma`` the noise sigma of the frame's differences (``difference_sigma``), ``failure``
     the checks a fit must pass (``failure(est, key)``: why the fit ``est`` against ``key``
-    cannot be trusted, or ''; the tracker's :func:`divergence`)."""
+    cannot be trusted, or ''; the tracker's :func:`divergence`), ``recent_msd`` the robust
+    msd of the recent accepted frames (:meth:`doubtful`)."""
 
     options: TrackOptions
     camera: PinholeCamera
     sigma: float
     failure: Callable[[Estimate, Keyframe], str]
+    recent_msd: Sequence[float] = ()
 
     def search(self, key: Keyframe, pyr: list[np.ndarray], guess: np.ndarray,
                gain: float, bias: float) -> np.ndarray:
@@ -106,6 +114,14 @@ class FitChecks:
         """Share of the in-view points that agree with the estimate within the noise."""
         return score(est, self.sigma)
 
+    def doubtful(self, est: Estimate) -> bool:
+        """A fit that passes the checks, yet leaves a robust msd RETRY_MSD times the recent
+        frames' (:func:`msd_baseline`): on low texture under heavy noise a camera that jerks
+        leads the prediction into a wrong minimum 2-15 deg off, 1.5-2.5x the level, where
+        the capture's starts find the right one (soak scenario 51)."""
+        return bool(self.recent_msd) and \
+            robust_msd(est) > RETRY_MSD * msd_baseline(self.sigma, self.recent_msd)
+
     def fit(self, index: int, key: Keyframe, image: np.ndarray, pyr: list[np.ndarray],
             guess: np.ndarray, predicted: bool, standing: bool, *, prediction: np.ndarray,
             recovery: LostFrameRecovery, brightness: tuple[float, float]
@@ -114,10 +130,10 @@ class FitChecks:
         ``cur_from_key``) where that is a prediction (``predicted``: the estimator starts at
         pyramid level ``TrackOptions.predicted_top_level``) or a standing start
         (``standing``: "no motion yet", from the top), and with the capture's starts
-        (:meth:`capture`, 0.1 s) where it fails the checks or neither holds.
-        ``(est, reason, captured, from_prediction)``: the fit kept, why it fails ('' if it
-        passes), whether it came from the capture, and the fit from the prediction (failing
-        or not; None: there was none). ``prediction``, ``recovery``, ``brightness``:
+        (:meth:`capture`, 0.1 s) where it fails the checks, is :meth:`doubtful`, or neither
+        holds. ``(est, reason, captured, from_prediction)``: the fit kept, why it fails ('' if
+        it passes), whether it came from the capture, and the fit from the prediction
+        (failing or not; None: there was none). ``prediction``, ``recovery``, ``brightness``:
         :meth:`capture`'s."""
         est, reason = None, ""
         if predicted or standing:
@@ -125,12 +141,14 @@ class FitChecks:
                                   gain=brightness[0], bias=brightness[1],
                                   first_level=self.options.predicted_top_level if predicted else None)
             reason = self.failure(est, key)
-        captured = est is None or bool(reason)
+        captured, first = est is None or bool(reason), est
         from_prediction = est if predicted else None
-        if captured:
+        if captured or self.doubtful(est):
             est, reason = self.capture(index, key, image, pyr, guess, est, reason,
                                        predicted=prediction, recovery=recovery, brightness=brightness)
-        return est, reason, captured, from_prediction
+            if not captured and (reason or robust_msd(est) >= robust_msd(first)):
+                est, reason = first, ""  # a doubtful fit gives way only to a closer one
+        return est, reason, captured or est is not first, from_prediction
 
     def refit(self, key: Keyframe, pyr: list[np.ndarray], new: Estimate, est: Estimate
               ) -> Estimate | None:

@@ -246,8 +246,8 @@ class Odometry:
             if closer is not None and closer[1].points > 2 * est.points:
                 return self._reinit(index, timestamp, image, pyr, "", resolved=closer)
         # where no prediction picks the minimum: the others as good (an accepted fit's only)
-        found = rivals(key, pyr, est, self.options.estimator) \
-            if unpinned(self._prior(index), key.plane.distance) else []
+        found = rivals(key, pyr, est, self.options.estimator) if self._checks().doubtful(est) \
+            or unpinned(self._prior(index), key.plane.distance) else []
         return self._accept(index, timestamp, image, pyr, est, captured=captured,
                             refuted=refuted(from_prediction, est, captured), rivals=found)
 
@@ -372,7 +372,7 @@ class Odometry:
 
     def _checks(self) -> FitChecks:
         """The current frame's search (:class:`~monovo_cli.core.checks.FitChecks`)."""
-        return FitChecks(self.options, self.camera, self._sigma, self._failure)
+        return FitChecks(self.options, self.camera, self._sigma, self._failure, tuple(self._recent_msd))
 
     def _failure(self, est: Estimate, key: Keyframe) -> str:
         """Why ``est`` (against ``key``) cannot be trusted, or '' (:mod:`~monovo_cli.core.checks`'
