@@ -114,12 +114,15 @@ class FitChecks:
         """Share of the in-view points that agree with the estimate within the noise."""
         return score(est, self.sigma)
 
-    def doubtful(self, est: Estimate) -> bool:
-        """A fit that passes the checks, yet leaves a robust msd RETRY_MSD times the recent
-        frames' (:func:`msd_baseline`): on low texture under heavy noise a camera that jerks
-        leads the prediction into a wrong minimum 2-15 deg off, 1.5-2.5x the level, where
-        the capture's starts find the right one (soak scenario 51)."""
-        return bool(self.recent_msd) and \
+    def doubtful(self, est: Estimate, key: Keyframe) -> bool:
+        """A fit against ``key`` that passes the checks, yet leaves a robust msd RETRY_MSD
+        times the recent frames' (:func:`msd_baseline`): on low texture under heavy noise a
+        camera that jerks leads the prediction into a wrong minimum 2-20 deg off, 1.3-2.5x
+        the level, where the capture's starts find the right one (soak scenario 51). Not on
+        a keyframe with periods (:mod:`monovo_cli.core.aliases`): there every period fits
+        alike, a moving shadow raises the level, and a retry trades the prediction's period
+        for another (scenario 21, a checkerboard: 195 % drift)."""
+        return bool(self.recent_msd) and (key.periods is None or not len(key.periods)) and \
             robust_msd(est) > RETRY_MSD * msd_baseline(self.sigma, self.recent_msd)
 
     def fit(self, index: int, key: Keyframe, image: np.ndarray, pyr: list[np.ndarray],
@@ -143,7 +146,7 @@ class FitChecks:
             reason = self.failure(est, key)
         captured, first = est is None or bool(reason), est
         from_prediction = est if predicted else None
-        if captured or self.doubtful(est):
+        if captured or self.doubtful(est, key):
             est, reason = self.capture(index, key, image, pyr, guess, est, reason,
                                        predicted=prediction, recovery=recovery, brightness=brightness)
             if not captured and (reason or robust_msd(est) >= robust_msd(first)):

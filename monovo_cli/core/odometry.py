@@ -246,7 +246,7 @@ class Odometry:
             if closer is not None and closer[1].points > 2 * est.points:
                 return self._reinit(index, timestamp, image, pyr, "", resolved=closer)
         # where no prediction picks the minimum: the others as good (an accepted fit's only)
-        found = rivals(key, pyr, est, self.options.estimator) if self._checks().doubtful(est) \
+        found = rivals(key, pyr, est, self.options.estimator) if self._checks().doubtful(est, key) \
             or unpinned(self._prior(index), key.plane.distance) else []
         return self._accept(index, timestamp, image, pyr, est, captured=captured,
                             refuted=refuted(from_prediction, est, captured), rivals=found)
