@@ -22,7 +22,7 @@ from functools import partial
 import numpy as np
 
 from monovo_cli.core.estimator.estimate import Estimate, coarse_search, estimate_motion
-from monovo_cli.core.estimator.ground import rectangle_corners
+from monovo_cli.core.estimator.ground import in_front, rectangle_corners
 from monovo_cli.core.estimator.robust import inlier_fraction
 from monovo_cli.core.frame_std import robust_msd
 from monovo_cli.core.keyframe import Keyframe, footprint
@@ -215,8 +215,7 @@ def off_the_ground(camera: PinholeCamera, region: tuple[int, int, int, int], key
     as they must where a keyframe is anchored. A fit that leaves the camera below the
     ground, or tilts its view of it past the horizon within the region, converged to a wrong
     minimum (on the few points still in view, whose intensities fit it)."""
-    corners = rectangle_corners(camera, key.plane.in_frame(cur_from_key), region)
-    if not np.all(np.isfinite(corners)) or np.any(corners[:, 2] <= 0):
+    if not in_front(rectangle_corners(camera, key.plane.in_frame(cur_from_key), region)):
         return "the ground would not fill the region in front of the camera"
     return ""
 

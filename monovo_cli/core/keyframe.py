@@ -18,6 +18,7 @@ from monovo_cli.core.aliases import ground_periods
 from monovo_cli.core.estimator.estimate import KeyLevel
 from monovo_cli.core.estimator.ground import (
     default_threshold,
+    in_front,
     rectangle_corners,
     require_points,
     select_points,
@@ -76,7 +77,7 @@ def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: 
     budget = point_budget(options, camera)
     coarse = min(budget, _one_point_per(options.coarse_pixels_per_point, camera))
     spline = options.estimator.interpolation != "linear"
-    if not np.all(np.isfinite(corners)) or np.any(corners[:, 2] <= 0):
+    if not in_front(corners):
         raise TrackingError("the ground plane is not in front of the camera over the region")
     levels = []
     m = mask
