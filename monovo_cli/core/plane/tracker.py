@@ -155,7 +155,9 @@ class PlaneTracker:
         where the images contradicted a plane given as exact, the ground they see departs
         from it by up to the bobbing's width in distance too, and every tilt from then on is
         uncertain by the contradiction itself: the images and init.yaml disagreed by that
-        much, one of them is that far off, and the tool cannot tell which."""
+        much, one of them is that far off, and the tool cannot tell which (with
+        ``keep_initial_tilt`` for the whole drive; a tilt corrected on the images until the
+        re-anchors measure how far the ground seen departs from it)."""
         cov = self.covariance
         if self._report_distance is not None and cov[0, 0] > 0:  # (its correlations kept)
             r = math.sqrt(self._report_distance / cov[0, 0])
@@ -165,8 +167,12 @@ class PlaneTracker:
         P = self.consistency.reported(cov)
         # (the tilt frame 0's images did not confirm is the ground seen departing from the
         # plane: once the re-anchors measure that departure, it is theirs, not counted twice)
-        unconfirmed = None if self.consistency.departure_measured else self._unconfirmed_tilt
-        extras = [e for e in (self._disputed_tilt, unconfirmed, self._spread_tilt)
+        measured = self.consistency.departure_measured
+        unconfirmed = None if measured else self._unconfirmed_tilt
+        # (a contradicted tilt the images corrected: so too, where the tilt is tracked on the
+        # images' ground, not kept at init.yaml's)
+        disputed = None if measured and not self.keep_initial_tilt else self._disputed_tilt
+        extras = [e for e in (disputed, unconfirmed, self._spread_tilt)
                   if e is not None]
         if self._model_variance or extras:
             P = P.copy()
