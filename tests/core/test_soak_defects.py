@@ -1,5 +1,6 @@
-"""Defects the scenario soak found (benchmarks/soak.py), each reproduced on a drive of our own
-synth. Each test failed before its fix; its docstring names the defect."""
+"""Defects the scenario soak found (benchmarks/soak.py) and issue 40 reported, each reproduced
+on a drive of our own synth. Each test failed before its fix (or, where the fix came first,
+with it taken out); its docstring names the defect."""
 
 import csv
 import shutil
@@ -82,18 +83,18 @@ def test_an_unreadable_frame_where_a_turn_in_place_begins_states_a_whole_step(sy
 
 def test_a_mirrored_minimum_at_mer_spacing_is_not_written_as_the_frames_motion(synth_drive,
                                                                               monkeypatch):
-    """Issue 40's second defect: at MER spacing one frame in about 330 converged to a mirrored
-    translation ((ty, tz) (0.90, -0.92) m where the truth was (-0.53, 0.51)) at 31x the
-    drive's median msd, and was written `reanchored` 2.05 m off with a std of 0.33 m. The
-    spontaneous convergence was never reproduced on our synth (no such row in the soak's 500
-    scenarios nor on nine MER seeds), so here the fit from the prediction is made to converge
-    to it: started at the true step times -1.7 on frame 6 of a 512² MER drive (seed 3), it
-    stops at the mirrored minimum, (0.12, 0.91, -1.00) m against (-0.07, -0.53, 0.59), at an
-    msd of about 1510 where the drive's rows sit near 30. Such a fit is not the frame's
-    motion: it is no better than chance, its robust msd rose 50x over the recent rows' and a
-    capture finds a closer fit; any one of the three rejects it. With none of them (chance
-    share 1.0, msd factor and retry ratio infinite) the mirrored step was written `ok`, 2.2 m
-    off (its std widened to 0.5-1.2 m by the change from the prediction)."""
+    """Issue 40's second defect: at MER spacing one frame in about 330 converged to a
+    mirrored translation ((ty, tz) (0.90, -0.92) m where the truth was (-0.53, 0.51)) at 31x
+    the drive's median msd, and was written `reanchored` 2.05 m off with a std of 0.33 m.
+    The spontaneous convergence was never reproduced on our synth, so here the fit from the
+    prediction is made to converge to it: started at the true step times -1.7 on frame 6 of
+    a 512² MER drive (seed 3), it stops at the mirrored minimum, (0.12, 0.91, -1.00) m
+    against (-0.07, -0.53, 0.59), at an msd of about 1510 where the drive's rows sit near
+    30. Such a fit is not the frame's motion: it is no better than chance, its robust msd
+    rose 50x over the recent rows' and a capture finds a closer fit; any one of the three
+    rejects it. With none of them (chance share 1.0, msd factor and retry ratio infinite)
+    the mirrored step was written `ok`, 2.2 m off (its std widened to 0.5-1.2 m by the
+    change from the prediction)."""
     from monovo_cli import iter_track
     from monovo_cli.core import checks
     from monovo_cli.core.odometry import Odometry
