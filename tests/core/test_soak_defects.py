@@ -92,9 +92,9 @@ def test_a_mirrored_minimum_at_mer_spacing_is_not_written_as_the_frames_motion(s
     against (-0.07, -0.53, 0.59), at an msd of about 1510 where the drive's rows sit near
     30. Such a fit is not the frame's motion: it is no better than chance, its robust msd
     rose 50x over the recent rows' and a capture finds a closer fit; any one of the three
-    rejects it. With none of them (chance share 1.0, msd factor and retry ratio infinite)
-    the mirrored step was written `ok`, 2.2 m off (its std widened to 0.5-1.2 m by the
-    change from the prediction)."""
+    keeps it out of the row. With none of them (chance share 1.0, msd factor and retry ratio
+    infinite) the mirrored step was written `ok`, 2.2 m off (its std widened to 0.5-1.2 m by
+    the change from the prediction)."""
     from monovo_cli import iter_track
     from monovo_cli.core import checks
     from monovo_cli.core.odometry import Odometry
