@@ -24,6 +24,7 @@ import cv2
 import numpy as np
 
 from monovo_cli.core.estimator.estimate import estimate_motion
+from monovo_cli.core.estimator.ground import in_front
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import motion_change, so3_exp, so3_log
 from monovo_cli.geometry.plane import Plane
@@ -148,7 +149,7 @@ def ground_periods(pyramid: list[np.ndarray], camera: PinholeCamera, plane: Plan
     out = []
     for du, dv, _ in found:
         X = plane.intersect(cam.rays(np.array([c, c + (du, dv)])))
-        if np.all(np.isfinite(X)) and np.all(X[:, 2] > 0):
+        if in_front(X):
             out.append(X[1] - X[0])
     return np.array(out).reshape(-1, 3)
 

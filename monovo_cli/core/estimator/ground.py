@@ -79,10 +79,11 @@ def rectangle_corners(camera: PinholeCamera, plane: Plane,
     return plane.intersect(camera.rays(uv))
 
 
-def in_front(corners: np.ndarray) -> bool:
-    """Whether the region's rays met the plane in front of the camera: ``corners`` (4, 3),
-    :func:`rectangle_corners`' (a ray that misses the plane gives NaN)."""
-    return bool(np.all(np.isfinite(corners)) and np.all(corners[:, 2] > 0))
+def in_front(points: np.ndarray) -> bool:
+    """Whether rays met the plane in front of the camera: ``points`` (N, 3), their
+    intersections (:func:`rectangle_corners`', ``Plane.intersect``'s; a ray that misses the
+    plane gives NaN)."""
+    return bool(np.all(np.isfinite(points)) and np.all(points[:, 2] > 0))
 
 
 TRIANGLES = np.array([[0, 1, 2], [0, 2, 3]])

@@ -122,7 +122,8 @@ class PlaneTracker:
         self._tilt_checks = 0
         self._model_variance = 0.0  # (m^2) the ground seen departs from a plane given as exact
         #: (2, 2) rad^2: the images contradicted frame 0's tilt given as exact by this much
-        #: (squared, per angle); one of the two is that far off, for the whole drive
+        #: (squared, per angle); one of the two is that far off (reported while the tilt is
+        #: kept, or corrected until a re-anchor measures the ground seen)
         self._disputed_tilt: np.ndarray | None = None
         #: (2, 2) rad^2: the images did not confirm frame 0's tilt given as exact on some
         #: frame before the first re-anchor (chi-square from UNCONFIRMED_CHI2 up, below
