@@ -113,7 +113,7 @@ _PLANE_TRACKER = (
     "sigmas", "latent_mount", "_reference", "mounting", "covariance", "keep_initial_tilt",
     "initial_tilt", "_tilt_checks", "_model_variance", "_disputed_tilt", "_unconfirmed_tilt",
     "_contradicted_later", "_spread_tilt", "consistency", "_report_distance",
-    "_next_report_distance")
+    "_next_report_distance", "_pull", "_next_pull")
 
 
 def state_types() -> Registry:
@@ -155,7 +155,8 @@ def state_types() -> Registry:
         "covariance": _f(3, 3), "_disputed_tilt": _f(2, 2, optional=True),
         "_unconfirmed_tilt": _f(2, 2, optional=True), "_spread_tilt": _f(2, 2, optional=True)})
     types.add(PlaneCovarianceCalibration,
-              ("_distance_nis", "_tilt_excess", "_seen_excess", "_calibration"))
+              ("_distance_nis", "_distance_offsets", "_tilt_excess", "_seen_excess",
+               "_calibration"))
     types.add(PlaneBelief, arrays={"information": _f(3, 3), "vector": _f(3, optional=True)})
     types.add(PlaneLink, arrays={"gain": _f(3, 3), "innovation": _f(3)})
     types.add(LostFrameRecovery, ("camera", "mask", "region", "options", "reference", "current"),

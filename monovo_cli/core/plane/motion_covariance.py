@@ -56,6 +56,7 @@ CONSISTENCY_WINDOW = 100  # re-anchors remembered by PlaneCovarianceCalibration
 PLANAR_SEEN_DEG = 0.1  # the ground seen departs from the carried planes by less: a plane
 #                         (measured: flat drives 0.00-0.004 deg, terrain 0.54-0.70)
 CHI2_1_MEDIAN = 0.455  # median of a chi-square variable with 1 degree of freedom
+OFFSET_SAMPLES = 4  # re-anchors before their innovations size the prior's offset
 SENSITIVITY_POINTS = 32768  # the plane sensitivity's tilt columns sum over at most these
 
 
@@ -171,20 +172,28 @@ class PlaneCovarianceCalibration:
     CHI2_1_MEDIAN, times ``1 / (2 (1 - TILT_PERSISTENCE))``, is added to the tilt block. The
     same of the images' measured normal against the carried plane, its trace shared by the
     two tilts, is the ground seen's departure from the plane, added too.
+
+    The same innovations size how far the ground's distance sits from the prior's
+    (:meth:`prior_offset`), the error the prior's pull gives the keyframes' distances.
     """
 
     def __init__(self) -> None:
         self._distance_nis: deque[float] = deque(maxlen=CONSISTENCY_WINDOW)
+        #: (nu_d (m), the share of the prior's offset the carried distance holds, less 1)
+        self._distance_offsets: deque[tuple[float, float]] = deque(maxlen=CONSISTENCY_WINDOW)
         self._tilt_excess: deque[np.ndarray] = deque(maxlen=CONSISTENCY_WINDOW)
         self._seen_excess: deque[np.ndarray] = deque(maxlen=CONSISTENCY_WINDOW)
         self._calibration: tuple[float, np.ndarray, np.ndarray | None] | None = None  # g, Q, seen
 
     def reanchored(self, carried: PlaneBelief, new: PlaneBelief, prior: PlaneBelief,
-                   distance_change: float, measured: PlaneBelief | None = None) -> None:
+                   distance_change: float, measured: PlaneBelief | None = None,
+                   carried_pull: float = 0.0) -> None:
         """One re-anchor: the old keyframe's plane ``carried`` to the new keyframe
         (:func:`~monovo_cli.core.plane.belief.propagated_plane`, before process noise), whose
         plane is ``new`` (the MAP); ``prior`` the mounting prior, ``distance_change`` (m) the
-        distance's process noise; ``measured`` the images' normal there (None: not measured)."""
+        distance's process noise; ``measured`` the images' normal there (None: not measured);
+        ``carried_pull`` the share of the prior's offset from the ground the carried distance's
+        error holds (the pull of the re-anchors before, :meth:`PlaneTracker.successor`)."""
         try:
             Pc, Pn, Pp = carried.covariance, new.covariance, prior.covariance
         except np.linalg.LinAlgError:
@@ -194,6 +203,7 @@ class PlaneCovarianceCalibration:
         if np.isfinite(predicted) and predicted > 0:
             nu_d = carried.plane.distance - prior.plane.distance
             self._distance_nis.append(nu_d ** 2 / predicted)
+            self._distance_offsets.append((nu_d, carried_pull - 1.0))
         nu_t = to_chart(new.plane, carried.plane)[1:]
         excess = np.outer(nu_t, nu_t) - Pc[1:, 1:] - Pn[1:, 1:]
         if np.all(np.isfinite(excess)):
@@ -212,6 +222,35 @@ class PlaneCovarianceCalibration:
         before any re-anchor)."""
         seen = self._seen_variance()
         return seen is None or seen <= math.radians(PLANAR_SEEN_DEG) ** 2
+
+    def prior_offset(self) -> tuple[float, float] | None:
+        """``(common, spread)`` (m^2): how far the ground's distance sits from the mounting
+        prior's, from the re-anchors' innovations; None before OFFSET_SAMPLES of them.
+
+        The prior's centre differs from the ground's distance by an offset ``b`` common to
+        every keyframe (frame 0 off the mean mount, a mount declared a little off) and a
+        bobbing ``u`` of its own at each. An innovation ``nu = carried - prior`` is then
+        ``a b - u`` and the carried distance's own error, ``a`` the share of ``b`` the carried
+        error holds less 1 (a drive whose prior has pulled its distance all the way tells
+        nothing of ``b`` any more). ``b`` is fitted by least squares; ``spread`` is the
+        residuals' variance at its upper one-sigma bound for as many (n - 1 degrees of
+        freedom, Wilson-Hilferty: 3.6x at 4 re-anchors, 1.9x at 10, 1.3x at 40), ``common``
+        ``b^2`` and the fit's variance. The prior's width is a weight chosen for the MAP, the
+        bobbing a drive may have; these are the drive's own (512² flat drives: a width of
+        71 mm with a latent mount, a departure of 6.8 mm RMS; a MER drive: frame 0 35 mm
+        below the mean mount)."""
+        n = len(self._distance_offsets)
+        if n < OFFSET_SAMPLES:
+            return None
+        nu, a = np.array(self._distance_offsets).T
+        aa = float(a @ a)
+        if aa <= 0.0:
+            return None
+        b = float(nu @ a) / aa
+        dof = n - 1
+        lower = dof * (1.0 - 2.0 / (9.0 * dof) - math.sqrt(2.0 / (9.0 * dof))) ** 3
+        spread = float(np.sum((nu - a * b) ** 2)) / lower
+        return b ** 2, spread
 
     @property
     def departure_measured(self) -> bool:
