@@ -235,10 +235,10 @@ class PlaneCovarianceCalibration:
         nothing of ``b`` any more). ``b`` is fitted by least squares; ``spread`` is the
         residuals' variance at its upper one-sigma bound for as many (n - 1 degrees of
         freedom, Wilson-Hilferty: 3.6x at 4 re-anchors, 1.9x at 10, 1.3x at 40), ``common``
-        ``b^2`` and the fit's variance. The prior's width is a weight chosen for the MAP, the
-        bobbing a drive may have; these are the drive's own (512² flat drives: a width of
-        71 mm with a latent mount, a departure of 6.8 mm RMS; a MER drive: frame 0 35 mm
-        below the mean mount)."""
+        the fitted ``b`` squared (whose expectation holds the fit's variance). The prior's
+        width is a weight chosen for the MAP, the bobbing a drive may have; these are the
+        drive's own (512² flat drives: a width of 71 mm with a latent mount, a departure of
+        6.8 mm RMS; a MER drive: frame 0 35 mm below the mean mount)."""
         n = len(self._distance_offsets)
         if n < OFFSET_SAMPLES:
             return None
