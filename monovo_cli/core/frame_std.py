@@ -73,9 +73,11 @@ def prediction_std(changes: Sequence[np.ndarray], last_motion: np.ndarray | None
     The prediction repeats the last accepted motion (``last_motion`` (6,), None: none yet),
     so its error is the change of the motion since: per axis the larger of the RMS and the
     largest of the recent accepted frames' ``changes`` (PREDICTION_WINDOW of them, each (6,)),
-    grown as a random walk with the frames lost in a row (``lost_run``, this one included),
-    added to the last accepted motion's own std ``last_std`` (6,). Without such a history
-    (the first frames) the motion itself, or at a standing start a fraction of the ground's
+    grown as a random walk with the frames lost since a motion was last measured
+    (``lost_run``, this one included; a re-initialisation that re-solved no gap measured
+    none, and the rows after it are as far from knowing the motion as before it), added to
+    the last accepted motion's own std ``last_std`` (6,). Without such a history (the first
+    frames) the motion itself, or at a standing start a fraction of the ground's
     ``distance`` (m) and STANDING_DEG, stands for it. ``bridged`` (6,): how far the pose
     taken (the feature hypothesis') is from the prediction, added as a further error.
     """

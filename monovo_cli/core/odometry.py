@@ -119,7 +119,7 @@ class Odometry:
         self._recovery = LostFrameRecovery(camera, options=self.options.features, mask=mask,
                                   region=region)  # the feature hypothesis
         self._key_msd: float | None = None  # msd of the first frame fitted to the keyframe
-        self._lost_run = 0  # frames lost in a row
+        self._lost_run = self._unmeasured = 0  # lost in a row; since a motion was measured
         # the prediction's uncertainty (lost rows): the accepted motions' changes from one
         # frame to the next, (tx, ty, tz, rx, ry, rz) m and rad, and the last accepted motion
         self._motion_changes: deque[np.ndarray] = deque(maxlen=PREDICTION_WINDOW)
@@ -267,7 +267,7 @@ class Odometry:
         gap = None  # the lost frames before this one: what the prediction would say here
         if self._lost_run and self._good is not None:
             gap = gap_closure(self._good, self._key, self._predicted, self._gap_steps,
-                              self._prediction_std(np.zeros(6), self._lost_run + 1))
+                              self._prediction_std(np.zeros(6), self._unmeasured + 1))
         if self._plane.wants_test(self._key, index):
             est = self._settle_plane(index, pyr, est)
         key = self._key
@@ -313,7 +313,7 @@ class Odometry:
         self._cur_from_key_prev = cur_from_key
         self._gain, self._bias = nxt.gain, nxt.bias
         self._recent_msd.append(robust_msd(est))
-        self._lost_run, self._gap_steps = 0, []
+        self._lost_run, self._unmeasured, self._gap_steps = 0, 0, []
         self._good = GoodFrame(index, image, world_from_cur, cur_from_key)
         if self._key_msd is None:
             self._key_msd = robust_msd(est)
@@ -340,7 +340,7 @@ class Odometry:
         self._world_from_prev = world_from_cur
         self._cur_from_key_prev = cur_from_key
         self._state = OdometryState.RECOVERING
-        self._lost_run += 1
+        self._lost_run, self._unmeasured = self._lost_run + 1, self._unmeasured + 1
         predicted_std = self._prediction_std(motion_change(cur_from_key, predicted))
         std = lost_std(predicted_std, self._last_motion, self._key.plane.distance)
         self._gap_variance = self._gap_variance + std ** 2
@@ -351,14 +351,14 @@ class Odometry:
     def _prediction_std(self, bridged: np.ndarray, lost_run: int | None = None) -> np.ndarray:
         """(6,) m and rad: the std of a lost frame's motion (:func:`frame_std.prediction_std`);
         ``bridged`` (6,) how far the pose taken is from the prediction, ``lost_run`` the
-        frames lost in a row, this one included (None: as counted)."""
+        frames lost since a motion was measured, this one included (None: as counted)."""
         return prediction_std(self._motion_changes, self._last_motion, self._last_std,
                               self._key.plane.distance,
-                              self._lost_run if lost_run is None else lost_run, bridged)
+                              self._unmeasured if lost_run is None else lost_run, bridged)
 
     def _prior(self, index: int) -> np.ndarray:
         """(6,) the prediction's std at frame ``index``; after a loss a lost row's (a step)."""
-        prior = self._prediction_std(np.zeros(6), self._lost_run + 1)
+        prior = self._prediction_std(np.zeros(6), self._unmeasured + 1)
         return prior if self._last_accepted == index - 1 else \
             lost_std(prior, self._last_motion, self._key.plane.distance)
 
@@ -468,8 +468,8 @@ class Odometry:
         words = f"re-initialised after {lost_for} lost frames" + (f" ({reason})" if reason else "")
         if resolved is None:
             return replace(res, status=FrameStatus.REINIT, keyframe=self._key.index, reason=words)
-        # the gap's mean motion per frame is the next prediction
-        self._velocity = se3_exp(-se3_log(fresh.good_from_cur) / (index - good.index))
+        # the gap's mean motion per frame is the next prediction: a motion measured
+        self._velocity, self._unmeasured = se3_exp(-se3_log(fresh.good_from_cur) / (index - good.index)), 0
         return resolved_row(res, words, self._key.index, resolved[1], good, world_from_prev,
                             fresh.world_from_cur, fresh.covariance, gap_before, variances)
 

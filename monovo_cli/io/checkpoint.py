@@ -106,7 +106,7 @@ _ODOMETRY = (
     "camera", "region", "options", "mask", "_plane0", "_plane", "_key", "_world_from_prev",
     "_cur_from_key_prev", "_motion_cov", "_velocity", "_state", "_gain", "_bias",
     "_recent_msd", "_sigma", "_chance_msd", "_prev_image", "_key_image", "rebuilt_keyframes",
-    "_recovery", "_key_msd", "_lost_run", "_motion_changes", "_last_motion", "_last_std",
+    "_recovery", "_key_msd", "_lost_run", "_unmeasured", "_motion_changes", "_last_motion", "_last_std",
     "_last_accepted", "_gap_variance", "_gap_steps", "_handed_over", "_good", "_started",
     "_announced")
 _PLANE_TRACKER = (

@@ -263,3 +263,17 @@ def test_a_jerking_camera_on_noisy_low_texture_is_re_tried_from_the_capture(tmp_
            for f, m, s in zip(frames, motions, statuses) if f <= 20 and s in ("ok", "reanchored")}
     assert len(off) >= 18
     assert max(off.values()) < 1.0, off
+
+
+def test_lost_rows_after_re_initialisations_that_measured_nothing_keep_the_prediction_doubt(tmp_path):
+    """Seed 40's scenario 295 (128 px, steps of the camera's height, 0.97 m: past the capture
+    range from the start, and frame 16 a double step over a dropped frame): no frame is ever
+    tracked, the tracker re-initialises every third frame, and each re-initialisation reset
+    the prediction's random walk to a standing start's 0.48 m. Frame 16, 1.97 m off, was
+    written lost at 4.1 std. A re-initialisation that re-solves no gap measures no motion, so
+    the walk now goes on from the last motion measured (here none): frame 16's std is 1.9 m.
+    Scenario 3 (320 px, 2.7 m steps, frame 8 6.5 m off at 4.6 std) was the same."""
+    sc = draw(40, 295)
+    assert (sc.width, sc.frames, sc.dropped) == (128, 23, (16,))
+    verdict = _tracked(sc, tmp_path)
+    assert not verdict.failures, "\n".join(verdict.details)
