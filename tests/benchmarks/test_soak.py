@@ -277,3 +277,18 @@ def test_lost_rows_after_re_initialisations_that_measured_nothing_keep_the_predi
     assert (sc.width, sc.frames, sc.dropped) == (128, 23, (16,))
     verdict = _tracked(sc, tmp_path)
     assert not verdict.failures, "\n".join(verdict.details)
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "untrusted: frame 10, after three re-initialisations that measured nothing, is captured "
+    "ok 8.7, -11.8 and -9.3 deg off; the unforeseen change widens its std to cover the "
+    "prediction at exactly 4 std, and the truth sits 0.6 deg beyond the prediction: 4.2 std"))
+def test_a_capture_after_re_initialisations_that_measured_nothing_covers_the_truth(tmp_path):
+    """Seed 40's scenario 138 (224x168 low texture on rocks, 0.54 m steps): frames 1-9 are
+    lost or re-initialised. Before the prediction's random walk went on through them, frame
+    10 stayed lost and the drive failed its drift bound (54 %); now frame 10 is captured,
+    a wrong minimum whose std covers the prediction but not the truth. The drift holds."""
+    sc = draw(40, 138)
+    assert (sc.width, sc.height, sc.texture, sc.ground) == (224, 168, "low", "rocks")
+    verdict = _tracked(sc, tmp_path)
+    assert not verdict.failures, "\n".join(verdict.details)
