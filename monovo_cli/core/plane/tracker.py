@@ -138,15 +138,12 @@ class PlaneTracker:
         #: fits disagreed on its rotation this much (:meth:`anchored_captured`)
         self._spread_tilt: np.ndarray | None = None
         self.consistency = PlaneCovarianceCalibration()
-        #: (m^2) the keyframe distance's variance for reporting where it differs from the
-        #: filter's (:meth:`_reported_distance_variance`), and the next keyframe's, worked out
-        #: by :meth:`successor` for :meth:`anchored` (None: the filter's)
-        self._report_distance: float | None = None
-        self._next_report_distance: float | None = None
-        #: (the share of the prior's offset the reported distance's error holds, the variance
-        #: of the rest of it (m^2)) of that report, and of the next (None: the filter's)
-        self._pull: tuple[float, float] | None = None
-        self._next_pull: tuple[float, float] | None = None
+        #: the keyframe distance for reporting where it differs from the filter's
+        #: (:meth:`_reported_distance_variance`): (its variance (m^2), the share of the prior's
+        #: offset its error holds, the variance of the rest of it (m^2)); and the next
+        #: keyframe's, worked out by :meth:`successor` for :meth:`anchored` (None: the filter's)
+        self._report_distance: tuple[float, float, float] | None = None
+        self._next_report_distance: tuple[float, float, float] | None = None
 
     @property
     def ground_planar(self) -> bool:
@@ -165,7 +162,7 @@ class PlaneTracker:
         re-anchors measure how far the ground seen departs from it)."""
         cov = self.covariance
         if self._report_distance is not None and cov[0, 0] > 0:  # (its correlations kept)
-            r = math.sqrt(self._report_distance / cov[0, 0])
+            r = math.sqrt(self._report_distance[0] / cov[0, 0])
             cov = np.array(cov, dtype=float)
             cov[0, :] *= r
             cov[:, 0] *= r
@@ -237,8 +234,7 @@ class PlaneTracker:
         self._spread_tilt = None
         self.covariance = self.mounting.covariance if covariance is None else covariance
         self._report_distance = self._next_report_distance if covariance is not None else None
-        self._pull = self._next_pull if covariance is not None else None
-        self._next_report_distance, self._next_pull = None, None
+        self._next_report_distance = None
 
     def anchored_captured(self, plane: Plane, rotations: list[np.ndarray]) -> None:
         """The keyframe just anchored (``plane`` in its camera) stands on a captured frame
@@ -445,7 +441,7 @@ class PlaneTracker:
                              latent_mount=self.latent_mount)
         except (ValueError, np.linalg.LinAlgError):
             return key.plane.in_frame(cur_from_key), None, fit.gain, fit.bias, None
-        pulled = 0.0 if self._pull is None else self._pull[0]
+        pulled = 0.0 if self._report_distance is None else self._report_distance[1]
         self.consistency.reanchored(carried, belief, prior, distance_change, measured,
                                     carried_pull=J[0, 0] * pulled)
         self._next_report_distance = self._reported_distance_variance(
@@ -453,8 +449,9 @@ class PlaneTracker:
         return belief.plane, belief.covariance, fit.gain, fit.bias, link
 
     def _reported_distance_variance(self, j: float, predicted: float, posterior: float,
-                                    distance_change: float) -> float | None:
-        """(m^2) the next keyframe's distance variance for reporting, None: the filter's.
+                                    distance_change: float) -> tuple[float, float, float] | None:
+        """The next keyframe's distance for reporting, ``(variance (m^2), c, the variance of
+        the rest (m^2))``; None: the filter's.
 
         The filter carries the distance with DISTANCE_CHANGE_PLANAR of process noise per
         keyframe where frame 0's images confirmed the tilt: a weight for the MAP (chosen by
@@ -473,8 +470,8 @@ class PlaneTracker:
         as an error, a 512² flat drive's distance went into ty and tz as 7 times their error;
         with the prior's pulls independent, a MER drive's distance went 23 mm off against a
         std of 4 mm.)"""
-        pull, own = (0.0, float(self.covariance[0, 0])) if self._pull is None else self._pull
-        self._next_pull = None
+        pull, own = (0.0, float(self.covariance[0, 0])) if self._report_distance is None \
+            else self._report_distance[1:]
         if not (self.consistency.ground_planar and self.distance_change <= DISTANCE_CHANGE_PLANAR):
             return None
         if not (0.0 < posterior < predicted):
@@ -487,5 +484,4 @@ class PlaneTracker:
             (min(offset[0], rest), min(offset[1], rest))  # (beyond the width: the g of reported)
         pull = w * j * pull + (1.0 - w)
         own = w ** 2 * (j ** 2 * own + motion) + (1.0 - w) ** 2 * bobbing
-        self._next_pull = (pull, own)
-        return float(own + pull ** 2 * common)
+        return float(own + pull ** 2 * common), pull, float(own)

@@ -389,7 +389,7 @@ def test_the_keyframe_distance_at_mer_spacing_is_as_far_off_as_reported(synth_dr
     def anchoring(self, *args, **kwargs):
         out = successor(self, *args, **kwargs)
         if self._next_report_distance is not None:
-            seen.append((at["index"], out[0].distance, self._next_report_distance))
+            seen.append((at["index"], out[0].distance, self._next_report_distance[0]))
         return out
 
     monkeypatch.setattr(odometry.Odometry, "_accept", accepting)
