@@ -8,6 +8,7 @@
     python -m benchmarks.speed --threads 2 --no-profile  # both on two threads
     python -m benchmarks.speed --sizes 512x512 --frames 100 --no-profile --repeats 5
     python -m benchmarks.speed ... --write-docs        # + its section of docs/benchmarks.md
+    python -m benchmarks.speed --against c65b42c --repeats 5   # this tree against a commit
 
 For each size a ``monovo synth --preset drive`` sequence (noise variance 10, seed 0) is
 rendered (not timed), then, on one core (OpenCV, BLAS and OpenMP on one thread):
@@ -42,6 +43,14 @@ it would have a core more than ECC).
 row each), then the ratios' median and range per size: on a shared machine whose speed
 drifts within minutes, one pair says little.
 
+``--against REV``: instead of ECC, monovo as it was at commit ``REV`` (its ``monovo_cli``
+unpacked by ``git archive`` into a temporary folder) is the peer: ``python -m monovo_cli track
+SEQ -o OUT --threads 1 -q`` run as a child process from this tree and from that one, whole
+process (start-up included), alternating which goes first, ``--repeats`` pairs per size (at
+least 3). Per size: the median frames/s of each, the ratio pair by pair (median and range,
+wall and CPU; above 1 this tree is faster), and whether the two wrote the same motion.csv.
+Its table is a section of its own.
+
 ``--memory``: peak resident memory (the child's own VmHWM, read at its exit) of a
 ``monovo track SEQ -o OUT -q`` subprocess over the first 500 and all 5000 frames of one
 512x512 drive (the 500-frame sequence is a folder of symlinks to the first frames).
@@ -51,11 +60,14 @@ from __future__ import annotations
 
 import argparse
 import cProfile
+import io
 import os
 import pstats
+import resource
 import statistics
 import subprocess
 import sys
+import tarfile
 import tempfile
 import time
 from pathlib import Path
@@ -71,6 +83,7 @@ from monovo_cli.io.sources import open_frames
 from monovo_cli.pipeline.track import track_sequence
 from monovo_cli.synth.write import synthesize
 
+ROOT = Path(__file__).resolve().parents[1]
 SIZES = ("256x256", "512x512", "688x544", "1024x1024")
 TARGET_FPS = {"256x256": 150.0, "512x512": 50.0, "1024x1024": 12.0}  # issue 5, end to end
 
@@ -270,6 +283,90 @@ def speed_row(size: str, e: dict, est_fps: tuple[float, float], ecc_fps: tuple[f
             f"{e['reanchored']} | {e['drift_pct']:.3f} |")
 
 
+# --------------------------------------------------------------------------- against a commit
+
+
+def package_at(rev: str, dest: Path) -> Path:
+    """``monovo_cli`` as it was at commit ``rev``, unpacked into ``dest`` (returned: the folder
+    to put on PYTHONPATH); a clear exit when git does not know ``rev``."""
+    got = subprocess.run(["git", "-C", str(ROOT), "archive", "--format=tar", rev, "monovo_cli"],
+                         capture_output=True)
+    if got.returncode != 0:
+        raise SystemExit(f"error: git archive {rev}: {got.stderr.decode().strip()}")
+    dest.mkdir(parents=True)
+    with tarfile.open(fileobj=io.BytesIO(got.stdout)) as tar:
+        tar.extractall(dest, filter="data")
+    return dest
+
+
+def _child_env(tree: Path) -> dict[str, str]:
+    """The environment of a child that imports ``monovo_cli`` from ``tree`` (checked; children
+    run in ``tree``'s parent, not here, where the working directory's package would come
+    first)."""
+    env = dict(os.environ, PYTHONPATH=str(tree), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1",
+               MKL_NUM_THREADS="1")
+    where = subprocess.run([sys.executable, "-c", "import monovo_cli; print(monovo_cli.__file__)"],
+                           env=env, capture_output=True, text=True, check=True,
+                           cwd=tree.parent).stdout.strip()
+    if not Path(where).resolve().is_relative_to(tree.resolve()):
+        raise SystemExit(f"error: PYTHONPATH={tree} imports monovo_cli from {where}")
+    return env
+
+
+def cli_seconds(env: dict[str, str], seq: Path, out: Path) -> tuple[float, float]:
+    """(wall, CPU) seconds of ``python -m monovo_cli track SEQ -o OUT --threads 1 -q`` as a
+    child process with ``env`` (:func:`_child_env`)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "monovo_cli", "track", str(seq), "-o", str(out),
+                    "--threads", "1", "-q", "--overwrite"], env=env, check=True,
+                   cwd=Path(env["PYTHONPATH"]).parent)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def against_commit(args: argparse.Namespace, tmp: Path) -> list[tuple]:
+    """Per size of ``args.sizes``: this tree's ``monovo track`` and commit ``args.against``'s,
+    timed in alternation over ``args.repeats`` pairs: (size, frames, [(wall, cpu) of this tree],
+    [(wall, cpu) of the commit], same motion.csv)."""
+    envs = {"this": _child_env(ROOT), "base": _child_env(package_at(args.against, tmp / "base"))}
+    rows = []
+    for size in args.sizes:
+        w, h = (int(v) for v in size.split("x"))
+        seq = tmp / f"drive_{size}"
+        synthesize(seq, preset="drive", frames=args.frames, size=(w, h), noise_var=10.0,
+                   seed=args.seed)
+        times: dict[str, list] = {"this": [], "base": []}
+        for k in range(max(3, args.repeats)):
+            for who in (("this", "base") if k % 2 == 0 else ("base", "this")):
+                times[who].append(cli_seconds(envs[who], seq, tmp / f"out_{who}_{size}"))
+        same = ((tmp / f"out_this_{size}" / "motion.csv").read_bytes()
+                == (tmp / f"out_base_{size}" / "motion.csv").read_bytes())
+        rows.append((size, args.frames, times["this"], times["base"], same))
+        print(f"({size} done)", file=sys.stderr)
+    return rows
+
+
+def print_against(args: argparse.Namespace, rows: list[tuple]) -> None:
+    rev = args.against
+    print(f"### This tree against commit {rev}: `monovo track --threads 1` as a child process, "
+          f"whole process, alternating ({args.frames}-frame drives, noise variance 10, seed "
+          f"{args.seed})\n")
+    print(f"| size | pairs | this tree, frames/s (median, wall) | {rev}, frames/s | this / {rev}, "
+          "wall: median (range) | CPU: median (range) | the same motion.csv |")
+    print("|" + " --- |" * 7)
+    for size, frames, this, base, same in rows:
+        wall = [b[0] / a[0] for a, b in zip(this, base)]
+        cpu = [b[1] / a[1] for a, b in zip(this, base)]
+        print(f"| {size} | {len(wall)} | {frames / statistics.median(a for a, _ in this):.1f} | "
+              f"{frames / statistics.median(b for b, _ in base):.1f} | "
+              f"{statistics.median(wall):.3f} ({min(wall):.3f}-{max(wall):.3f}) | "
+              f"{statistics.median(cpu):.3f} ({min(cpu):.3f}-{max(cpu):.3f}) | "
+              f"{'yes' if same else 'no'} |")
+    print(f"\nRatios above 1: this tree is faster. ({load()} at the end.)")
+
+
 # --------------------------------------------------------------------------- main
 
 
@@ -290,12 +387,15 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=None,
                     help="both methods on N threads (OpenCV's, and monovo's --threads N); "
                          "default: one core")
+    ap.add_argument("--against", metavar="REV", default=None,
+                    help="time this tree against commit REV instead of ECC (its own section)")
     ap.add_argument("--write-docs", action="store_true",
                     help="rewrite the speed section of docs/benchmarks.md (with --memory: the "
                          "memory section)")
     args = ap.parse_args()
-    section = ("memory", "Memory over long drives") if args.memory else (
-        "speed", "Speed against ECC, one thread each")
+    section = (("memory", "Memory over long drives") if args.memory
+               else ("speed-against", "Speed against an earlier commit") if args.against
+               else ("speed", "Speed against ECC, one thread each"))
     with printed_section(*section, "benchmarks.speed", args.write_docs):
         run(args)
 
@@ -309,6 +409,10 @@ def run(args: argparse.Namespace) -> None:
 
         cv2.setNumThreads(args.threads)
     print(f"Machine: {machine()}; {load()} at the start\n")
+    if args.against:
+        with tempfile.TemporaryDirectory() as tmp_name:
+            print_against(args, against_commit(args, Path(tmp_name)))
+        return
     speed_rows, stage_cols = [], []
     with tempfile.TemporaryDirectory() as tmp_name:
         tmp = Path(tmp_name)
