@@ -291,7 +291,7 @@ class Odometry:
         jumps = [] if terrain_grid is None else [(motion_change(
             prev_from_cur, self._motion_to(key, orthonormalize(tracked.cur_from_key))), 0.0)]
         cov, model = accepted_covariance(
-            self._motion_cov.relative(est, key.levels[0], key.plane, self._plane.reported_covariance,
+            self._motion_cov.relative(est, key.levels[0], key.plane, self._plane.reported(key.plane),
                                       self._cur_from_key_prev, prev_from_cur, pyr[0]),
             jumps + [(half, noise) for half, noise, _ in spread], None if reanchor else self._handed_over,
             self._gap_variance, prev_from_cur)

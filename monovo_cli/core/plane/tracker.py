@@ -183,6 +183,29 @@ class PlaneTracker:
                 P[1:, 1:] += extra
         return P
 
+    def reported(self, plane: Plane) -> np.ndarray:
+        """(3, 3) :attr:`reported_covariance` of the keyframe ``plane`` (in its camera), and,
+        where its tilt and the mounting prior's cannot both hold (chi-square of the two tilts'
+        difference against both covariances beyond CONSISTENT_CHI2), that difference too: the
+        rover stands on the ground, so a keyframe plane that far from the mount is the
+        estimate's error unless the ground seen is not the ground under the wheels, and the
+        tool cannot tell which (a low-texture rock field has rolled a keyframe plane 40 deg
+        in a dozen frames)."""
+        P = self.reported_covariance
+        mount = measured_tilt(self.mounting, plane)
+        if mount is None:
+            return P
+        delta, C = mount
+        try:
+            chi2 = float(delta @ np.linalg.solve(C + P[1:, 1:], delta))
+        except np.linalg.LinAlgError:
+            return P
+        if chi2 <= CONSISTENT_CHI2:
+            return P
+        P = P.copy()
+        P[1:, 1:] += np.outer(delta, delta)
+        return P
+
     @property
     def distance_change(self) -> float:
         """The carried distance's process noise per keyframe, a share of the distance:

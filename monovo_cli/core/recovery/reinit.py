@@ -116,7 +116,7 @@ def resolved_pose(ref: Keyframe, est: Estimate, key: Keyframe, good: GoodFrame,
     carried = plane.carried(ref.plane, cur_from_ref, est.covariance,
                             motion_cov.sensitivity(est, ref.levels[0], ref.plane))
     good_from_cur = orthonormalize(se3_inv(good.world_from_cur) @ world_from_cur)
-    cov = motion_cov.relative(est, ref.levels[0], ref.plane, plane.reported_covariance,
+    cov = motion_cov.relative(est, ref.levels[0], ref.plane, plane.reported(ref.plane),
                               good.cur_from_key if ref is key else np.eye(4), good_from_cur)
     return world_from_cur, carried, good_from_cur, cov
 
