@@ -113,7 +113,7 @@ _PLANE_TRACKER = (
     "sigmas", "latent_mount", "_reference", "mounting", "covariance", "keep_initial_tilt",
     "initial_tilt", "_tilt_checks", "_model_variance", "_disputed_tilt", "_unconfirmed_tilt",
     "_contradicted_later", "_spread_tilt", "consistency", "_report_distance",
-    "_next_report_distance")
+    "_next_report_distance", "_mount_tilt")
 
 
 def state_types() -> Registry:

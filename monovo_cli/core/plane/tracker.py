@@ -144,6 +144,9 @@ class PlaneTracker:
         #: keyframe's, worked out by :meth:`successor` for :meth:`anchored` (None: the filter's)
         self._report_distance: tuple[float, float, float] | None = None
         self._next_report_distance: tuple[float, float, float] | None = None
+        #: (keyframe plane, mounting prior, the prior's tilt in that plane's chart): the last
+        #: :meth:`reported` worked out, kept for the rows of the same keyframe
+        self._mount_tilt: tuple[Plane, PlaneBelief, tuple[np.ndarray, np.ndarray] | None] | None = None
 
     @property
     def ground_planar(self) -> bool:
@@ -192,7 +195,10 @@ class PlaneTracker:
         tool cannot tell which (a low-texture rock field has rolled a keyframe plane 40 deg
         in a dozen frames)."""
         P = self.reported_covariance
-        mount = measured_tilt(self.mounting, plane)
+        cached = self._mount_tilt
+        if cached is None or cached[0] is not plane or cached[1] is not self.mounting:
+            cached = self._mount_tilt = plane, self.mounting, measured_tilt(self.mounting, plane)
+        mount = cached[2]
         if mount is None:
             return P
         delta, C = mount
