@@ -69,9 +69,11 @@ def noise_factor(level: KeyLevel, plane: Plane, image: np.ndarray, cur_from_key:
     if not inside.any():
         return 1.0
     p = p[inside].astype(np.float32)
-    # (one row per point: cv2.remap takes maps of fewer than 32767 rows, and MAX_POINTS are)
-    i_cur, gcx, gcy = (cv2.remap(g, p[:, :1], p[:, 1:], cv2.INTER_CUBIC,
-                                 borderMode=cv2.BORDER_REPLICATE)[:, 0] for g in (image, gx, gy))
+    # (the points as one row: cv2.remap takes maps of fewer than 32767 columns, and MAX_POINTS
+    # are; a column of one point per row costs it 27x the time, for the same values)
+    u, v = np.ascontiguousarray(p[None, :, 0]), np.ascontiguousarray(p[None, :, 1])
+    i_cur, gcx, gcy = (cv2.remap(g, u, v, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)[0]
+                       for g in (image, gx, gy))
     g_cur = np.stack([gcx, gcy], 1)
     i_key = pts.intensity[take][inside]
     gain = float(np.std(i_cur)) / max(float(np.std(i_key)), 1e-6)
