@@ -11,7 +11,7 @@ import pytest
 from benchmarks.speed import ROOT, _child_env, package_at
 
 
-def test_the_commit_s_package_is_the_one_the_child_imports(tmp_path):
+def test_the_child_runs_the_package_of_the_commit_named(tmp_path):
     tree = package_at("HEAD", tmp_path / "base")
     assert (tree / "monovo_cli" / "__init__.py").is_file()
     head = subprocess.run(["git", "-C", str(ROOT), "show", "HEAD:monovo_cli/version.py"],
