@@ -294,8 +294,9 @@ def package_at(rev: str, dest: Path) -> Path:
     if got.returncode != 0:
         raise SystemExit(f"error: git archive {rev}: {got.stderr.decode().strip()}")
     dest.mkdir(parents=True)
+    safe = {"filter": "data"} if hasattr(tarfile, "data_filter") else {}  # (Python 3.9.17+)
     with tarfile.open(fileobj=io.BytesIO(got.stdout)) as tar:
-        tar.extractall(dest, filter="data")
+        tar.extractall(dest, **safe)
     return dest
 
 
