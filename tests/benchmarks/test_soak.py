@@ -281,12 +281,12 @@ def test_lost_rows_after_re_initialisations_that_measured_nothing_keep_the_predi
 
 def test_rows_against_a_keyframe_plane_far_from_the_mount_state_its_departure(tmp_path):
     """Seed 40's scenario 307 (384 px low texture on rocks at noise variance 19.1, turns in
-    place of 18 deg): the keyframe planes rolled away from the truth, 37 deg at frame 11 and
-    43 at frame 15, each reported to within 2.5-3 deg, and frames 16 and 17 were written ok
-    at 4.8 and 18.9 std. The rover stands on its ground, so a keyframe plane that the
-    mounting prior cannot reconcile with its own tilt states that departure in every row
-    measured against it (``PlaneTracker.reported``). Cut to 18 frames, the drive did not
-    show the defect: the test runs all 30."""
+    place of 18 deg): the keyframes' normals turned away from the truth, 21 deg at frame 11
+    and 29 deg at frame 15, their tilts reported with a std of 2.4-3.3 deg each, and frames
+    16 and 17 were written ok at 4.8 and 18.9 std. The rover stands on its ground, so a
+    keyframe plane that the mounting prior cannot reconcile with its own tilt states that
+    departure in every row measured against it (``PlaneTracker.reported``). Cut to 18
+    frames, the drive did not show the defect: the test runs all 30."""
     sc = draw(40, 307)
     assert (sc.width, sc.texture, sc.ground, sc.frames) == (384, "low", "rocks", 30)
     verdict = _tracked(sc, tmp_path)

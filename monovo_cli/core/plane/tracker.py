@@ -192,8 +192,8 @@ class PlaneTracker:
         difference against both covariances beyond CONSISTENT_CHI2), that difference too: the
         rover stands on the ground, so a keyframe plane that far from the mount is the
         estimate's error unless the ground seen is not the ground under the wheels, and the
-        tool cannot tell which (a low-texture rock field has rolled a keyframe plane 40 deg
-        in a dozen frames)."""
+        tool cannot tell which (on a low-texture rock field a keyframe's normal has turned 29
+        deg from the truth in fifteen frames, its tilt reported to within 2.5 deg)."""
         P = self.reported_covariance
         cached = self._mount_tilt
         if cached is None or cached[0] is not plane or cached[1] is not self.mounting:
