@@ -301,7 +301,7 @@ def test_a_capture_after_re_initialisations_that_measured_nothing_covers_the_tru
     """Seed 40's scenario 138 (224x168 low texture on rocks, 0.54 m steps): frames 1-9 are
     lost or re-initialised. Before the prediction's random walk went on through them, frame
     10 stayed lost and the drive failed its drift bound (54 %); now frame 10 is captured,
-    a wrong minimum whose std covers the prediction but not the truth. The drift holds."""
+    a wrong minimum whose std does not cover the truth. The drift holds."""
     sc = draw(40, 138)
     assert (sc.width, sc.height, sc.texture, sc.ground) == (224, 168, "low", "rocks")
     verdict = _tracked(sc, tmp_path)
