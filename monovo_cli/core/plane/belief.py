@@ -320,6 +320,31 @@ def measured_tilt(measured: PlaneBelief, plane: Plane) -> tuple[np.ndarray, np.n
     return C @ eta[1:], C
 
 
+def with_mount_departure(covariance: np.ndarray,
+                         mount: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray:
+    """A keyframe plane's reported ``covariance`` (3, 3), and, where its tilt and the mounting
+    prior's cannot both hold, their difference too: ``mount`` the prior's tilt angles (2,) in
+    the plane's chart and their covariance (:func:`measured_tilt`; None: nothing added). If
+    the difference's chi-square against both covariances is beyond CONSISTENT_CHI2, ``delta
+    delta^T`` joins the tilt block: the rover stands on its ground, so a keyframe plane that
+    far from the mount is the estimate's error or a ground seen that is not the one under the
+    wheels, and the tool cannot tell which (soak scenario 307, a low-texture rock field: a
+    keyframe's normal 29 deg from the truth in fifteen frames, its tilt reported to within
+    2.5 deg)."""
+    if mount is None:
+        return covariance
+    delta, C = mount
+    try:
+        chi2 = float(delta @ np.linalg.solve(C + covariance[1:, 1:], delta))
+    except np.linalg.LinAlgError:
+        return covariance
+    if chi2 <= CONSISTENT_CHI2:
+        return covariance
+    P = np.array(covariance, dtype=float)
+    P[1:, 1:] += np.outer(delta, delta)
+    return P
+
+
 def tilt_chi2(measured: PlaneBelief, plane: Plane) -> float:
     """Chi-square (2 dof) of the tilt that ``measured`` gives against ``plane``'s: how far the
     measurement's mean lies from ``plane`` in units of its own information."""

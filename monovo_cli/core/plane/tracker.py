@@ -76,6 +76,7 @@ from monovo_cli.core.plane.belief import (
     tilt_std_deg,
     to_chart,
     transported,
+    with_mount_departure,
 )
 from monovo_cli.core.plane.fit import refine_plane_and_motion
 from monovo_cli.core.plane.motion_covariance import TILT_MODEL_ERROR_DEG, PlaneCovarianceCalibration
@@ -144,8 +145,7 @@ class PlaneTracker:
         #: keyframe's, worked out by :meth:`successor` for :meth:`anchored` (None: the filter's)
         self._report_distance: tuple[float, float, float] | None = None
         self._next_report_distance: tuple[float, float, float] | None = None
-        #: (keyframe plane, mounting prior, the prior's tilt in that plane's chart): the last
-        #: :meth:`reported` worked out, kept for the rows of the same keyframe
+        #: (keyframe plane, mounting prior, the prior's tilt in its chart): :meth:`reported`'s
         self._mount_tilt: tuple[Plane, PlaneBelief, tuple[np.ndarray, np.ndarray] | None] | None = None
 
     @property
@@ -187,30 +187,13 @@ class PlaneTracker:
         return P
 
     def reported(self, plane: Plane) -> np.ndarray:
-        """(3, 3) :attr:`reported_covariance` of the keyframe ``plane`` (in its camera), and,
-        where its tilt and the mounting prior's cannot both hold (chi-square of the two tilts'
-        difference against both covariances beyond CONSISTENT_CHI2), that difference too: the
-        rover stands on the ground, so a keyframe plane that far from the mount is the
-        estimate's error unless the ground seen is not the ground under the wheels, and the
-        tool cannot tell which (on a low-texture rock field a keyframe's normal has turned 29
-        deg from the truth in fifteen frames, its tilt reported to within 2.5 deg)."""
-        P = self.reported_covariance
+        """(3, 3) :attr:`reported_covariance` of the keyframe ``plane`` (in its camera), with
+        its departure from the mounting prior where the two cannot both hold
+        (:func:`~monovo_cli.core.plane.belief.with_mount_departure`)."""
         cached = self._mount_tilt
         if cached is None or cached[0] is not plane or cached[1] is not self.mounting:
             cached = self._mount_tilt = plane, self.mounting, measured_tilt(self.mounting, plane)
-        mount = cached[2]
-        if mount is None:
-            return P
-        delta, C = mount
-        try:
-            chi2 = float(delta @ np.linalg.solve(C + P[1:, 1:], delta))
-        except np.linalg.LinAlgError:
-            return P
-        if chi2 <= CONSISTENT_CHI2:
-            return P
-        P = P.copy()
-        P[1:, 1:] += np.outer(delta, delta)
-        return P
+        return with_mount_departure(self.reported_covariance, cached[2])
 
     @property
     def distance_change(self) -> float:
