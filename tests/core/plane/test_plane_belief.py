@@ -14,12 +14,14 @@ from monovo_cli.core.plane.belief import (
     from_chart,
     fuse,
     keyframe_plane,
+    measured_tilt,
     mounting_prior,
     propagate,
     propagated_plane,
     tilt_std_deg,
     to_chart,
     transported,
+    with_mount_departure,
 )
 from monovo_cli.core.plane.tracker import Mounting
 from monovo_cli.core.run import RunRecorder
@@ -298,3 +300,21 @@ def test_init_yaml_bad_sigmas_are_one_line_errors(tmp_path, key, value, words):
     with pytest.raises(ConfigError) as e:
         load_init(p)
     assert words in str(e.value) and "\n" not in str(e.value)
+
+
+def test_a_keyframe_tilt_the_mount_cannot_reconcile_reports_the_departure():
+    """The mount (3 deg of bobbing) against keyframe planes tilted from it, each known to 1 deg:
+    5 deg is within both covariances (chi-square 2.5, nothing added); 25 deg is not
+    (chi-square 50), and the difference (the chart's tan 25 deg) joins the tilt block whole,
+    along its direction."""
+    mount = mounting_prior(Plane.from_height_pitch(1.5, 50.0), 0.05, 3.0)
+    P = np.diag([0.02 ** 2, math.radians(1.0) ** 2, math.radians(1.0) ** 2])
+    near = Plane.from_height_pitch(1.5, 55.0)
+    assert with_mount_departure(P, measured_tilt(mount, near)) is P
+    far = Plane.from_height_pitch(1.5, 75.0)
+    delta, _ = measured_tilt(mount, far)
+    assert np.linalg.norm(delta) == pytest.approx(math.tan(math.radians(25.0)), rel=1e-6)
+    widened = with_mount_departure(P, measured_tilt(mount, far))
+    np.testing.assert_allclose(widened[1:, 1:] - P[1:, 1:], np.outer(delta, delta), atol=1e-12)
+    assert widened[0, 0] == P[0, 0]
+    assert with_mount_departure(P, None) is P
