@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import argparse
 import functools
-import os
 import statistics
 import subprocess
 import sys
@@ -52,7 +51,7 @@ from collections import defaultdict
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from benchmarks.common import load, machine, one_core
+from benchmarks.common import child_env, load, machine, one_core
 
 SIZES = (256, 512, 1024)
 #: The exclusive parts of the frame loop, in the table's order ("other" is the rest).
@@ -297,9 +296,7 @@ def startup(seq: Path, out: Path, repeats: int = 3) -> tuple[float, float, float
     bytecode, as ``pip install`` leaves a package: the children may write it (an environment
     with PYTHONDONTWRITEBYTECODE would compile every module in every run, doubling monovo's
     own import time), and a first, untimed run writes it."""
-    env = {**os.environ, "PYTHONPATH": str(ROOT), "OMP_NUM_THREADS": "1",
-           "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    env = child_env(ROOT)
     rows = []
     for i in range(-1, repeats):
         t0 = time.monotonic()

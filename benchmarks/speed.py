@@ -46,10 +46,11 @@ drifts within minutes, one pair says little.
 ``--against REV``: instead of ECC, monovo as it was at commit ``REV`` (its ``monovo_cli``
 unpacked by ``git archive`` into a temporary folder) is the peer: ``python -m monovo_cli track
 SEQ -o OUT --threads 1 -q`` run as a child process from this tree and from that one, whole
-process (start-up included), alternating which goes first, ``--repeats`` pairs per size (at
-least 3). Per size: the median frames/s of each, the ratio pair by pair (median and range,
-wall and CPU; above 1 this tree is faster), and whether the two wrote the same motion.csv.
-Its table is a section of its own.
+process (start-up included, after an untimed run of each that writes its bytecode),
+alternating which goes first, ``--repeats`` pairs per size (at least 3). Per size: the
+median frames/s of each, the ratio pair by pair (median and range, wall and CPU; above 1
+this tree is faster), and whether the two wrote the same motion.csv. Its table is a section
+of its own.
 
 ``--memory``: peak resident memory (the child's own VmHWM, read at its exit) of a
 ``monovo track SEQ -o OUT -q`` subprocess over the first 500 and all 5000 frames of one
@@ -72,7 +73,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from benchmarks.common import Stopwatch, final_drift, load, machine, one_core
+from benchmarks.common import Stopwatch, child_env, final_drift, load, machine, one_core
 from benchmarks.docs_section import printed_section
 from benchmarks.peers import ECC_EPS_OPENCV, EccPeer, peer_on_drive
 from monovo_cli.core.odometry import estimate_frames
@@ -301,11 +302,10 @@ def package_at(rev: str, dest: Path) -> Path:
 
 
 def _child_env(tree: Path) -> dict[str, str]:
-    """The environment of a child that imports ``monovo_cli`` from ``tree`` (checked; children
-    run in ``tree``'s parent, not here, where the working directory's package would come
-    first)."""
-    env = dict(os.environ, PYTHONPATH=str(tree), OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1",
-               MKL_NUM_THREADS="1")
+    """The environment of a child that imports ``monovo_cli`` from ``tree``
+    (:func:`~benchmarks.common.child_env`; checked: children run in ``tree``'s parent, not
+    here, where the working directory's package would come first)."""
+    env = child_env(tree)
     where = subprocess.run([sys.executable, "-c", "import monovo_cli; print(monovo_cli.__file__)"],
                            env=env, capture_output=True, text=True, check=True,
                            cwd=tree.parent).stdout.strip()
@@ -339,6 +339,8 @@ def against_commit(args: argparse.Namespace, tmp: Path) -> list[tuple]:
         synthesize(seq, preset="drive", frames=args.frames, size=(w, h), noise_var=10.0,
                    seed=args.seed)
         times: dict[str, list] = {"this": [], "base": []}
+        for who in times:  # (untimed: each tree's bytecode written before its first timed run)
+            cli_seconds(envs[who], seq, tmp / f"out_{who}_{size}")
         for k in range(max(3, args.repeats)):
             for who in (("this", "base") if k % 2 == 0 else ("base", "this")):
                 times[who].append(cli_seconds(envs[who], seq, tmp / f"out_{who}_{size}"))
