@@ -368,8 +368,9 @@ def threads_option(default: str):
     return click.option(
         "--threads", type=click.IntRange(min=1), metavar="N", cls=LibraryDefault,
         default_text=lambda: default,
-        help="Threads for one run: from 2 on, frames are decoded on a thread of their own "
-             "while the one before is estimated. The outputs are the same bytes whatever N.")
+        help="Threads for one run: OpenCV's while tracking, and from 2 on, frames are decoded "
+             "on a thread of their own while the one before is estimated. The outputs are the "
+             "same bytes whatever N.")
 
 
 #: --mask: pixels never used (init, track, batch).

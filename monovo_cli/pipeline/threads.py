@@ -11,9 +11,13 @@ library loaded in the process is set to one thread through its own API for the t
 last exit restores the count found). The tracker's products are skinny (8 x N), which BLAS
 threads barely speed up.
 
-OpenCV's thread count needs no such care: the OpenCV functions the tracker calls work per
-pixel or per point (remap, filters, pyramids, perspectiveTransform) or run serially (ORB,
-the matcher, findHomography with its fixed RANSAC seed).
+OpenCV's thread count needs no such care for the bytes: the OpenCV functions the tracker
+calls work per pixel or per point (remap, filters, pyramids, perspectiveTransform) or run
+serially (ORB, the matcher, findHomography with its fixed RANSAC seed). It is set for the
+time, though (:func:`opencv_threads`): OpenCV's pool has a thread per core by default, and
+its idle workers wait by yielding the processor over and over, so a run asked for one
+thread (``--threads 1``) kept a second core busy (1.25 cores of CPU time at 256 px, a
+fifth of it in the kernel).
 
 A BLAS whose thread count has no known API (Apple's Accelerate) is left as it is: set its
 variable (``VECLIB_MAXIMUM_THREADS=1``) before Python starts for the same guarantee.
@@ -45,6 +49,9 @@ _APIS: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
 
 _lock = threading.Lock()
 _depth = 0
+_cv_lock = threading.Lock()
+_cv_depth = 0
+_cv_saved = 0
 _saved: list[tuple[Callable[[int], object], int]] = []
 _controls: list[tuple[Callable[[], int], Callable[[int], object]]] | None = None
 
@@ -116,3 +123,24 @@ def one_blas_thread() -> Iterator[None]:
             if _depth == 0:
                 for set_, count in _saved:
                     set_(max(count, 1))
+
+
+@contextlib.contextmanager
+def opencv_threads(count: int) -> Iterator[None]:
+    """Run the body with OpenCV's pool at ``count`` threads (1: none beside the caller); the
+    count found is restored when the last body (of nested or concurrent ones) is left."""
+    import cv2
+
+    global _cv_depth, _cv_saved
+    with _cv_lock:
+        if _cv_depth == 0:
+            _cv_saved = cv2.getNumThreads()
+            cv2.setNumThreads(max(int(count), 1))
+        _cv_depth += 1
+    try:
+        yield
+    finally:
+        with _cv_lock:
+            _cv_depth -= 1
+            if _cv_depth == 0:
+                cv2.setNumThreads(_cv_saved)

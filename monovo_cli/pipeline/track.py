@@ -180,9 +180,9 @@ def track_sequence(seq: Path, params: Path | None, out_dir: Path | None, options
     called once before tracking, with the frame the run continues at (0: there was no
     checkpoint) and the number of frames. ``progress(done, total)`` is called after every
     frame. Returns the run (:class:`~monovo_cli.core.run.TrackRun`), or None
-    when ``resume`` finds the run in ``out_dir`` finished (nothing to do). ``threads``: from 2
-    on, frames are decoded on a thread of their own ahead of the tracker
-    (:mod:`monovo_cli.pipeline.read_ahead`); None: all cores.
+    when ``resume`` finds the run in ``out_dir`` finished (nothing to do). ``threads``: OpenCV's
+    threads while tracking, and from 2 on, frames are decoded on a thread of their own ahead of
+    the tracker (:mod:`monovo_cli.pipeline.read_ahead`); None: all cores.
     """
     check_covariance_path(covariance, out_dir)
     if resume and out_dir is None:

@@ -41,7 +41,7 @@ from monovo_cli.mapping.gaps import close_gaps
 from monovo_cli.mapping.smoothing import SmoothedDrive, smooth_drive
 from monovo_cli.mapping.terrain_map import TerrainMap
 from monovo_cli.pipeline.read_ahead import read_frames
-from monovo_cli.pipeline.threads import one_blas_thread
+from monovo_cli.pipeline.threads import one_blas_thread, opencv_threads
 
 log = logging.getLogger(__name__)
 
@@ -144,8 +144,8 @@ class Tracking:
     ``thumbnails`` > 0 keeps a small grey copy (uint8, at most ``thumbnail_side`` px on its
     longer side) of at most that many keyframes' images (:attr:`thumbnails`, frame index ->
     image): when there are more, every other one is dropped, frame 0 kept, so those kept
-    stay spread evenly over the drive. ``threads`` from 2 on decodes the frames on a thread of
-    their own, ahead of the tracker (:mod:`monovo_cli.pipeline.read_ahead`; the same results).
+    stay spread evenly over the drive. ``threads``: OpenCV's while tracking, and from 2 on
+    the frames are decoded on a thread of their own, ahead of the tracker (the same results).
     """
 
     def __init__(self, seq: OpenedSequence, options: TrackOptions | None = None, *,
@@ -194,22 +194,23 @@ class Tracking:
         """Each frame's result, frame 0 first (or the frame after a :meth:`restore`d
         state); recorded as it comes if ``record``."""
         odo, priors = self._odometry, self._priors
-        for index, timestamp, image in self._images():
-            with one_blas_thread(), (naming(self.seq.first.path) if self._next == 0
-                                     else contextlib.nullcontext()):  # frame 0: the ground model
-                res, keys = odo.advance(index, timestamp, image, priors.get(index))
-                for key in keys:
-                    self._recorder.add_keyframe(key)
-                    log.info("frame %d: keyframe of %d observation points; its ground %s",
-                             key.index, len(key.levels[0].points), _ground_words(key.plane))
-                    if self.terrain is not None:
-                        self.terrain.add(key, self._last_image)
-                    if self._thumbnail_limit > 0:
-                        self._keep_thumbnail(int(key.index))
-            self._next = index + 1
-            if record:
-                self.record(res)
-            yield res
+        with opencv_threads(self._threads):  # (for the run: a change rebuilds OpenCV's pool)
+            for index, timestamp, image in self._images():
+                with one_blas_thread(), (naming(self.seq.first.path) if self._next == 0
+                                         else contextlib.nullcontext()):  # frame 0: the model
+                    res, keys = odo.advance(index, timestamp, image, priors.get(index))
+                    for key in keys:
+                        self._recorder.add_keyframe(key)
+                        log.info("frame %d: keyframe of %d observation points; its ground %s",
+                                 key.index, len(key.levels[0].points), _ground_words(key.plane))
+                        if self.terrain is not None:
+                            self.terrain.add(key, self._last_image)
+                        if self._thumbnail_limit > 0:
+                            self._keep_thumbnail(int(key.index))
+                self._next = index + 1
+                if record:
+                    self.record(res)
+                yield res
 
     def _keep_thumbnail(self, index: int) -> None:
         """A small copy of the keyframe image just read (frame ``index``), evenly thinned."""

@@ -22,6 +22,7 @@ import pytest
 from click.testing import CliRunner
 
 from monovo_cli.cli import main
+from monovo_cli.core.options import TrackOptions
 from monovo_cli.io.formats import read_motion_csv
 from monovo_cli.synth.write import synthesize
 from tests.helpers.reliability_cases import CASES, Outcome, make_base_sequence, run_case
@@ -278,8 +279,8 @@ def test_same_inputs_same_bytes(drive, tmp_path):
 
 @pytest.mark.parametrize("seq", ["drive", "rolling_drive"])
 def test_same_bytes_with_one_or_two_blas_and_opencv_threads(seq, request, tmp_path):
-    """BLAS/OpenMP threads (their variables, read when numpy loads) and OpenCV's threads,
-    each 1 or 2: the same bytes."""
+    """BLAS/OpenMP threads (their variables, read when numpy loads) and OpenCV's threads
+    (set before the run, and by --threads while tracking), each 1 or 2: the same bytes."""
     from monovo_cli.pipeline.batch_job import THREAD_VARIABLES
 
     seq = request.getfixturevalue(seq)
@@ -288,7 +289,7 @@ def test_same_bytes_with_one_or_two_blas_and_opencv_threads(seq, request, tmp_pa
         out = tmp_path / f"blas{blas}_opencv{opencv}"
         env = {**os.environ, **{var: str(blas) for var in THREAD_VARIABLES}}
         proc = subprocess.run([sys.executable, "-c", _WITH_THREADS, str(opencv), "track",
-                               str(seq), "-o", str(out), "-q"],
+                               str(seq), "-o", str(out), "-q", "--threads", str(opencv)],
                               capture_output=True, text=True, timeout=300, env=env)
         assert proc.returncode == 0, proc.stderr
         runs[blas, opencv] = _outputs(out)
@@ -308,6 +309,31 @@ def test_one_blas_thread_inside_and_restored_after():
         assert [get() for get, _ in controls] == [1] * len(controls)
         before = [count for _, count in threads._saved]
     assert [get() for get, _ in controls] == before
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_opencv_runs_on_the_threads_asked_while_tracking_and_is_restored_after(
+        drive, tmp_path, monkeypatch, threads):
+    """--threads 1 is one thread: OpenCV's idle pool workers wait by yielding the processor
+    again and again, and kept a second core busy through a run asked for one."""
+    from monovo_cli.core.odometry import Odometry
+    from monovo_cli.pipeline.track import track_sequence
+
+    seen, advance = [], Odometry.advance
+
+    def counting(self, *args, **kwargs):
+        seen.append(cv2.getNumThreads())
+        return advance(self, *args, **kwargs)
+
+    monkeypatch.setattr(Odometry, "advance", counting)
+    before = cv2.getNumThreads()
+    cv2.setNumThreads(3)
+    try:
+        track_sequence(drive, None, tmp_path / "o", TrackOptions(), threads=threads)
+        assert cv2.getNumThreads() == 3
+    finally:
+        cv2.setNumThreads(before)
+    assert len(seen) == 40 and set(seen) == {threads}
 
 
 def test_streamed_rows_equal_motion_csv(drive, tmp_path):
