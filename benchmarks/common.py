@@ -139,12 +139,14 @@ def load() -> str:
 
 
 def child_env(pythonpath: Path) -> dict[str, str]:
-    """The environment of a timed child process: ``pythonpath`` on its path, BLAS and OpenMP
-    on one thread, and the modules' bytecode written as ``pip install`` leaves a package
+    """The environment of a timed child process: ``pythonpath`` on its path, BLAS, OpenMP and
+    OpenCV on one thread (OpenCV's pool as ``--threads 1`` sets it since d1e8526, so a commit
+    from before runs on one core too: its idle pool worker otherwise spins on a second), and
+    the modules' bytecode written as ``pip install`` leaves a package
     (PYTHONDONTWRITEBYTECODE dropped: with it every run compiles every module again, which
     doubles monovo's own import time)."""
     env = {**os.environ, "PYTHONPATH": str(pythonpath), "OMP_NUM_THREADS": "1",
-           "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+           "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENCV_FOR_THREADS_NUM": "1"}
     env.pop("PYTHONDONTWRITEBYTECODE", None)
     return env
 

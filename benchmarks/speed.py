@@ -45,7 +45,8 @@ drifts within minutes, one pair says little.
 
 ``--against REV``: instead of ECC, monovo as it was at commit ``REV`` (its ``monovo_cli``
 unpacked by ``git archive`` into a temporary folder) is the peer: ``python -m monovo_cli track
-SEQ -o OUT --threads 1 -q`` run as a child process from this tree and from that one, whole
+SEQ -o OUT --threads 1 -q`` run as a child process from this tree and from that one (BLAS,
+OpenMP and OpenCV on one thread, ``benchmarks.common.child_env``), whole
 process (start-up included, after an untimed run of each that writes its bytecode),
 alternating which goes first, ``--repeats`` pairs per size (at least 3). Per size: the
 median frames/s of each, the ratio pair by pair (median and range, wall and CPU; above 1
