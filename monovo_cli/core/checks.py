@@ -76,9 +76,9 @@ def divergence(est: Estimate, options: TrackOptions, sigma: float, chance_msd: f
 
 def msd_baseline(sigma: float, recent_msd: Sequence[float]) -> float:
     """What a good fit's robust msd is now: the recent accepted frames' median
-    (``recent_msd``; none: the noise alone), but at least the two images' noise (``sigma``
-    the noise sigma of the frame's differences) and 1."""
-    return max(float(np.median(recent_msd)) if len(recent_msd) else 0.0, 2.0 * sigma ** 2, 1.0)
+    (``recent_msd``, not empty), but at least the two images' noise (``sigma`` the noise
+    sigma of the frame's differences) and 1."""
+    return max(float(np.median(recent_msd)), 2.0 * sigma ** 2, 1.0)
 
 
 def score(est: Estimate, sigma: float) -> float:
@@ -118,14 +118,11 @@ class FitChecks:
         """A fit against ``key`` that passes the checks, yet leaves a robust msd RETRY_MSD
         times the recent frames' (:func:`msd_baseline`): on low texture under heavy noise a
         camera that jerks leads the prediction into a wrong minimum 2-20 deg off, 1.3-2.5x
-        the level, where the capture's starts find the right one (soak scenario 51). With
-        no recent frame (the first after frame 0 or a re-initialisation) the level is the
-        noise's: a first frame 3.6 m off, past the capture range, left 2.3x it and was
-        accepted 5.2 std off (scenario 207). Not on
+        the level, where the capture's starts find the right one (soak scenario 51). Not on
         a keyframe with periods (:mod:`monovo_cli.core.aliases`): there every period fits
         alike, a moving shadow raises the level, and a retry trades the prediction's period
         for another (scenario 21, a checkerboard: 195 % drift)."""
-        return (key.periods is None or not len(key.periods)) and \
+        return bool(self.recent_msd) and (key.periods is None or not len(key.periods)) and \
             robust_msd(est) > RETRY_MSD * msd_baseline(self.sigma, self.recent_msd)
 
     def fit(self, index: int, key: Keyframe, image: np.ndarray, pyr: list[np.ndarray],

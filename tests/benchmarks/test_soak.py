@@ -293,19 +293,6 @@ def test_rows_against_a_keyframe_plane_far_from_the_mount_state_its_departure(tm
     assert "untrusted" not in verdict.failures, "\n".join(verdict.details)
 
 
-def test_a_first_fit_far_above_the_noise_is_re_tried_from_the_capture(tmp_path):
-    """Seed 40's scenario 207 (320 px rocks of low texture, steps of 1.35 m, frames 1 and 2
-    dropped): frame 1 is three steps, 3.6 m, from frame 0, past the capture range. Its fit
-    from the standing start left a robust msd 2.3x the noise's, but with no accepted frame
-    before it no fit was re-tried, and it was written ok 1.4 m off in tz at 5.2 std. A fit
-    whose robust msd is that far above the noise is now re-tried from the capture's starts on
-    the first frame too; the capture's closer fit states how little the images pin it."""
-    sc = draw(40, 207)
-    assert (sc.width, sc.texture, sc.ground, sc.dropped[:2]) == (320, "low", "rocks", (1, 2))
-    verdict = _tracked(sc, tmp_path)
-    assert "untrusted" not in verdict.failures, "\n".join(verdict.details)
-
-
 @pytest.mark.xfail(strict=True, reason=(
     "untrusted: frame 10, after three re-initialisations that measured nothing, is captured "
     "ok 8.6, -11.6 and -9.9 deg off in rx, ry, rz, a wrong minimum; its std, the fit's and "
