@@ -127,8 +127,9 @@ def one_blas_thread() -> Iterator[None]:
 
 @contextlib.contextmanager
 def opencv_threads(count: int) -> Iterator[None]:
-    """Run the body with OpenCV's pool at ``count`` threads (1: none beside the caller); the
-    count found is restored when the last body (of nested or concurrent ones) is left."""
+    """Run the body with OpenCV's pool at ``count`` threads (1: none beside the caller); of
+    nested or concurrent bodies the first sets the count, and the count found is restored
+    when the last is left."""
     import cv2
 
     global _cv_depth, _cv_saved
