@@ -218,8 +218,7 @@ class Odometry:
             return self._lost(index, timestamp, "constant or invalid image")
         pyr = build_pyramid(image, len(key.levels))
         self._sigma = difference_sigma(key.noise_sigma, image)
-        # what unrelated images would give (the brightness fit free): the keyframe points'
-        # intensity variance
+        # what unrelated images would give (brightness fit free): the points' intensity variance
         self._chance_msd = key.levels[0].intensity_variance
         guess = self._cur_from_key_prev
         predicted = prior_motion is not None or self._state is OdometryState.TRACKING
@@ -263,7 +262,8 @@ class Odometry:
         ``rivals``: the poses of other minima as good, :func:`aliases.rivals`).
         A captured frame's, and a re-anchoring frame's, split-half spread joins its covariance
         (:func:`frame_std.split_spread`); a motion the prediction did not foresee widens it
-        (:meth:`_unforeseen`) unless the prediction was refuted."""
+        (:meth:`_unforeseen`) unless the prediction was refuted; a doubtful fit kept widens the row."""
+        widen = self._checks().excess(est, self._key)  # (1: not doubtful; reported only)
         gap = None  # the lost frames before this one: what the prediction would say here
         if self._lost_run and self._good is not None:
             gap = gap_closure(self._good, self._key, self._predicted, self._gap_steps,
@@ -325,8 +325,8 @@ class Odometry:
             self._handed_over = model if model.any() else None
         elif not recovering:  # (a recovering tracker whose new keyframe failed stays so)
             self._state = OdometryState.TRACKING
-        return FrameResult(index, timestamp, world_from_cur, prev_from_cur, est.msd,
-                           est.iterations, est.points, status, std, cov, self._key.index,
+        return FrameResult(index, timestamp, world_from_cur, prev_from_cur, est.msd, est.iterations,
+                           est.points, status, std * np.sqrt(widen), cov * widen, self._key.index,
                            est.gain, est.bias, gap=gap)
 
     def _lost(self, index: int, timestamp: float, reason: str,
