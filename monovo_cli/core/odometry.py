@@ -245,10 +245,11 @@ class Odometry:
             if closer is not None and closer[1].points > 2 * est.points:
                 return self._reinit(index, timestamp, image, pyr, "", resolved=closer)
         # where no prediction picks the minimum: the others as good (an accepted fit's only)
-        found = rivals(key, pyr, est, self.options.estimator) if self._checks().doubtful(est, key) \
+        widen = self._checks().excess(est, key)  # above 1: doubtful, and kept
+        found = rivals(key, pyr, est, self.options.estimator) if widen > 1.0 \
             or unpinned(self._prior(index), key.plane.distance) else []
         return self._accept(index, timestamp, image, pyr, est, captured=captured,
-                            refuted=refuted(from_prediction, est, captured), rivals=found)
+                            refuted=refuted(from_prediction, est, captured), rivals=found, widen=widen)
 
     def skip(self, index: int, timestamp: float) -> FrameResult:
         """Frame ``index`` has no usable image: record it as lost at the prediction."""
@@ -256,14 +257,13 @@ class Odometry:
 
     def _accept(self, index: int, timestamp: float, image: np.ndarray, pyr: list[np.ndarray],
                 est: Estimate, *, captured: bool = False, refuted: bool = False,
-                rivals: Sequence[np.ndarray] = ()) -> FrameResult:
+                rivals: Sequence[np.ndarray] = (), widen: float = 1.0) -> FrameResult:
         """Record ``est`` (``captured``: it came from the capture's starts, not from the
         prediction; ``refuted``: the images refuted the prediction, :func:`frame_std.refuted`;
-        ``rivals``: the poses of other minima as good, :func:`aliases.rivals`).
+        ``rivals``: other minima as good, :func:`aliases.rivals`; ``widen``: :meth:`FitChecks.excess`).
         A captured frame's, and a re-anchoring frame's, split-half spread joins its covariance
         (:func:`frame_std.split_spread`); a motion the prediction did not foresee widens it
-        (:meth:`_unforeseen`) unless the prediction was refuted; a doubtful fit kept widens the row."""
-        widen = self._checks().excess(est, self._key)  # (1: not doubtful; reported only)
+        (:meth:`_unforeseen`) unless the prediction was refuted."""
         gap = None  # the lost frames before this one: what the prediction would say here
         if self._lost_run and self._good is not None:
             gap = gap_closure(self._good, self._key, self._predicted, self._gap_steps,
