@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from hypothesis import HealthCheck, event, given, settings
+from hypothesis import HealthCheck, event, example, given, settings
 from hypothesis import strategies as st
 
 from monovo_cli.errors import ConfigError, MonovoError
@@ -579,10 +579,15 @@ def _assert_valid(cfg: InitConfig) -> None:
     assert cam.fx > 0 and cam.fy > 0 and math.isfinite(cam.cx) and math.isfinite(cam.cy)
     assert len(cam.distortion) == 5 and all(math.isfinite(c) for c in cam.distortion)
     n = g.normal
-    assert abs(np.linalg.norm(n) - 1.0) < 1e-9 and n[2] > 0
+    assert abs(np.linalg.norm(n) - 1.0) < 1e-9
     assert g.distance > 0 and math.isfinite(g.distance)
     x0, y0, x1, y1 = cfg.region
     assert 0 <= x0 < x1 <= cam.width and 0 <= y0 < y1 <= cam.height
+    # The normal may point level or up (a road seen by a level camera): what must hold is that
+    # every ray of the region meets the plane in front of the camera, at a finite depth.
+    corners = np.array([[x0, y0], [x1 - 1, y0], [x0, y1 - 1], [x1 - 1, y1 - 1]], float)
+    dots = cam.rays(corners) @ n
+    assert np.all(dots > 0) and np.all(g.distance / dots < np.inf)
 
 
 _scalars = st.one_of(
@@ -639,6 +644,8 @@ def _load_accepted_or_rejected(p) -> None:
 
 @settings(max_examples=250, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.one_of(_mutated_config(), _values))
+# A level camera (normal (0, 1, 0)) over the lower half of the image: accepted, and valid.
+@example(data={**BASE, "ground": {"normal": [0, 1, 0], "distance": 1.5, "region": [0, 272, 688, 544]}})
 def test_property_load_init_structured(tmp_path_factory, data):
     p = tmp_path_factory.mktemp("prop") / "init.yaml"
     try:
