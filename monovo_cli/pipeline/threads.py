@@ -47,12 +47,6 @@ _APIS: tuple[tuple[str, tuple[tuple[str, str], ...]], ...] = (
     ("blis", (("bli_thread_get_num_threads", "bli_thread_set_num_threads"),)),
 )
 
-_lock = threading.Lock()
-_depth = 0
-_cv_lock = threading.Lock()
-_cv_depth = 0
-_cv_saved = 0
-_saved: list[tuple[Callable[[int], object], int]] = []
 _controls: list[tuple[Callable[[], int], Callable[[int], object]]] | None = None
 
 
@@ -102,46 +96,63 @@ def _find_controls() -> list[tuple[Callable[[], int], Callable[[int], object]]]:
     return found
 
 
-@contextlib.contextmanager
-def one_blas_thread() -> Iterator[None]:
+class _Held:
+    """A setting held while any of nested or concurrent bodies runs: the first to enter makes
+    it, the last to leave undoes it."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._depth = 0
+        self._undo: Callable[[], None] | None = None
+
+    @contextlib.contextmanager
+    def held(self, make: Callable[[], Callable[[], None]]) -> Iterator[None]:
+        """Run the body with the setting ``make`` makes (it returns the undoing) in force."""
+        with self._lock:
+            if self._depth == 0:
+                self._undo = make()
+            self._depth += 1
+        try:
+            yield
+        finally:
+            with self._lock:
+                self._depth -= 1
+                if self._depth == 0 and self._undo is not None:
+                    self._undo()
+                    self._undo = None
+
+
+_blas, _opencv = _Held(), _Held()
+
+
+def _blas_on_one_thread() -> Callable[[], None]:
+    global _controls
+    if _controls is None:
+        _controls = _find_controls()
+    saved = [(set_, int(get())) for get, set_ in _controls]
+    for set_, _ in saved:
+        set_(1)
+
+    def restore() -> None:
+        for set_, count in saved:
+            set_(max(count, 1))
+    return restore
+
+
+def one_blas_thread() -> contextlib.AbstractContextManager[None]:
     """Run the body with every loaded BLAS library on one thread; their thread counts are
     restored when the last body (of nested or concurrent ones) is left."""
-    global _controls, _depth
-    with _lock:
-        if _depth == 0:
-            if _controls is None:
-                _controls = _find_controls()
-            _saved[:] = [(set_, int(get())) for get, set_ in _controls]
-            for set_, _ in _saved:
-                set_(1)
-        _depth += 1
-    try:
-        yield
-    finally:
-        with _lock:
-            _depth -= 1
-            if _depth == 0:
-                for set_, count in _saved:
-                    set_(max(count, 1))
+    return _blas.held(_blas_on_one_thread)
 
 
-@contextlib.contextmanager
-def opencv_threads(count: int) -> Iterator[None]:
+def opencv_threads(count: int) -> contextlib.AbstractContextManager[None]:
     """Run the body with OpenCV's pool at ``count`` threads (1: none beside the caller); of
     nested or concurrent bodies the first sets the count, and the count found is restored
     when the last is left."""
     import cv2
 
-    global _cv_depth, _cv_saved
-    with _cv_lock:
-        if _cv_depth == 0:
-            _cv_saved = cv2.getNumThreads()
-            cv2.setNumThreads(max(int(count), 1))
-        _cv_depth += 1
-    try:
-        yield
-    finally:
-        with _cv_lock:
-            _cv_depth -= 1
-            if _cv_depth == 0:
-                cv2.setNumThreads(_cv_saved)
+    def set_count() -> Callable[[], None]:
+        saved = cv2.getNumThreads()
+        cv2.setNumThreads(max(int(count), 1))
+        return lambda: cv2.setNumThreads(saved)
+    return _opencv.held(set_count)

@@ -303,12 +303,19 @@ def test_one_blas_thread_inside_and_restored_after():
 
     with threads.one_blas_thread():
         controls = threads._controls
-        assert controls, "numpy's BLAS has no thread control here"
-        with threads.one_blas_thread():  # nested: still one
+    assert controls, "numpy's BLAS has no thread control here"
+    found = [get() for get, _ in controls]
+    for _, set_ in controls:
+        set_(2)
+    try:
+        with threads.one_blas_thread():
+            with threads.one_blas_thread():  # nested: still one
+                assert [get() for get, _ in controls] == [1] * len(controls)
             assert [get() for get, _ in controls] == [1] * len(controls)
-        assert [get() for get, _ in controls] == [1] * len(controls)
-        before = [count for _, count in threads._saved]
-    assert [get() for get, _ in controls] == before
+        assert [get() for get, _ in controls] == [2] * len(controls)
+    finally:
+        for (_, set_), count in zip(controls, found, strict=True):
+            set_(count)
 
 
 @pytest.mark.parametrize("threads", [1, 2])
