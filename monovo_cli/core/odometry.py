@@ -245,7 +245,7 @@ class Odometry:
             if closer is not None and closer[1].points > 2 * est.points:
                 return self._reinit(index, timestamp, image, pyr, "", resolved=closer)
         # where no prediction picks the minimum: the others as good (an accepted fit's only)
-        widen = self._checks().excess(est, key)  # above 1: doubtful, and kept
+        widen = self._checks().excess(est, key)  # above 1: beyond its level, and kept
         found = rivals(key, pyr, est, self.options.estimator) if widen > 1.0 \
             or unpinned(self._prior(index), key.plane.distance) else []
         return self._accept(index, timestamp, image, pyr, est, captured=captured,
