@@ -187,7 +187,7 @@ def alias_variance(key, pyramid: list[np.ndarray], est, prediction_std: np.ndarr
     well as the prediction knows it, and its variance along ``d`` is the prediction's (at
     least ``|d|^2``)."""
     cov = np.zeros((6, 6))
-    if key.periods is None or not len(key.periods):
+    if not key.periodic:
         return cov
     chance = key.levels[0].intensity_variance
     for period in key.periods:

@@ -127,7 +127,7 @@ class FitChecks:
         a keyframe with periods (:mod:`monovo_cli.core.aliases`): there every period fits
         alike, a moving shadow raises the level, and a retry trades the prediction's period
         for another (scenario 21, a checkerboard: 195 % drift)."""
-        return bool(self.recent_msd) and (key.periods is None or not len(key.periods)) and \
+        return bool(self.recent_msd) and not key.periodic and \
             robust_msd(est) > RETRY_MSD * msd_baseline(self.sigma, self.recent_msd)
 
     def excess(self, est: Estimate, key: Keyframe) -> float:
@@ -149,7 +149,7 @@ class FitChecks:
         the noise and was 5.2 std off."""
         if self.doubtful(est, key):
             return robust_msd(est) / msd_baseline(self.sigma, self.recent_msd)
-        if self.recent_msd or (key.periods is not None and len(key.periods)):
+        if self.recent_msd or key.periodic:
             return 1.0
         ratio = robust_msd(est) / noise_baseline(self.sigma)
         return ratio if ratio > RETRY_MSD else 1.0

@@ -54,6 +54,11 @@ class Keyframe:
     link: PlaneLink | None = None  # how its plane corrected the one carried from the last keyframe
     periods: np.ndarray | None = None  # (K, 3) its texture's periods along the plane (aliases)
 
+    @property
+    def periodic(self) -> bool:
+        """Its texture repeats: it has :attr:`periods`."""
+        return self.periods is not None and len(self.periods) > 0
+
 
 def build_keyframe(index: int, image: np.ndarray, camera: PinholeCamera, plane: Plane,
                    region: tuple[int, int, int, int], world_from_key: np.ndarray,
