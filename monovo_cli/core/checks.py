@@ -140,13 +140,13 @@ class FitChecks:
         average away. Soak scenarios 479 (frame 8, 4.2x the level: 0.15 m off at 4.5 std)
         and 111 (frame 12, 1.6x: 4.2 std).
 
-        The first fit against a keyframe with no recent frames (frame 1, or the first after a
-        re-initialisation) is never re-tried: on real images the plane model's own error can
-        exceed the noise many times over from frame 1 on, and a closer fit there is as often
-        a wrong minimum (a moving shadow, soak scenario 389). But the same excess over the
-        level it has, the two images' noise, widens its row: soak scenario 207's frame 1,
-        three steps past a dropped pair of frames and beyond the capture range, leaves 2.3x
-        the noise and was 5.2 std off."""
+        The first fit with no recent frames (frame 1, or the first after re-initialisations
+        before any frame was accepted) is never re-tried: on real images the plane model's
+        own error can exceed the noise many times over from frame 1 on, and a closer fit
+        there is as often a wrong minimum (a moving shadow, soak scenario 389). But the same
+        excess over the level it has, the two images' noise, widens its row: soak scenario
+        207's frame 1, three steps past a dropped pair of frames and beyond the capture
+        range, leaves 2.3x the noise and was 5.2 std off."""
         if self.doubtful(est, key):
             return robust_msd(est) / msd_baseline(self.sigma, self.recent_msd)
         if self.recent_msd or key.periodic:

@@ -447,7 +447,8 @@ class Odometry:
         (:func:`~monovo_cli.core.recovery.reinit.fresh_start`); a frame that cannot carry a
         keyframe stays lost. ``resolved`` the gap already re-solved (:meth:`_resolve_gap`;
         None: try it here), ``reason`` why the frame was not tracked ("" for a frame that
-        was, but is measured better from the last good frame)."""
+        was, but is measured better from the last good frame). The recent frames' msd level
+        stays: the scene and the camera are the same (:func:`checks.divergence`)."""
         lost_for, good = self._lost_run, self._good
         gap_before, world_from_prev = self._gap_variance.copy(), self._world_from_prev
         if resolved is None:
@@ -462,7 +463,6 @@ class Odometry:
         self._lost_run, self._gap_steps = 0, []
         self._gap_variance = np.zeros(6)  # the next motions are from this keyframe
         self._handed_over = None  # (a re-initialised keyframe measured no model error)
-        self._recent_msd.clear()  # a fresh start: no msd history yet
         self._world_from_prev = fresh.world_from_cur
         self._good = GoodFrame(index, image, fresh.world_from_cur, np.eye(4))
         words = f"re-initialised after {lost_for} lost frames" + (f" ({reason})" if reason else "")
