@@ -215,6 +215,8 @@ RIVAL_TOLERANCE_PX = 0.05  # ... stopping at this step (px), bilinear: a coarse 
 UNPINNED_SHARE = 0.1  # a prediction whose translation std is beyond this share of the
 #                       ground's distance does not pick the fit's minimum (a standing start,
 #                       a loss, a row that inherits either)
+UNPINNED_DEG = 5.0  # ... nor one whose rotation std is beyond this: half the nearest turned
+#                     start, so the prediction cannot tell the turned minima from the fit's
 MOVED_SHARE = 0.1  # a rival this share of the distance from the fit is another minimum
 RIVAL_TURNS_DEG = (10.0, 20.0)  # and starts turned by these about each camera axis
 TURNED_DEG = 3.0  # ... a rival turned this far from the fit is another minimum
@@ -224,9 +226,13 @@ RIVAL_MSD_RATIO = 10.0  # a rival fitting this many times worse than the best is
 
 
 def unpinned(prediction_std: np.ndarray, distance: float) -> bool:
-    """Whether a prediction of translation std ``prediction_std[:3]`` (m) leaves the minimum
-    open: beyond UNPINNED_SHARE of the ground's ``distance``."""
-    return float(np.linalg.norm(prediction_std[:3])) > UNPINNED_SHARE * distance
+    """Whether a prediction of std ``prediction_std`` (6,: m, rad) leaves the minimum open:
+    its translation beyond UNPINNED_SHARE of the ground's ``distance``, or its rotation
+    beyond UNPINNED_DEG (a camera that jerks by degrees from frame to frame: seed 40's
+    scenario 51, frame 21, a minimum 12 deg off with a lower msd than the truth's, whose
+    prediction was 10-15 deg uncertain)."""
+    return float(np.linalg.norm(prediction_std[:3])) > UNPINNED_SHARE * distance or \
+        float(np.linalg.norm(prediction_std[3:])) > np.radians(UNPINNED_DEG)
 
 
 def rivals(key, pyramid: list[np.ndarray], est, options) -> list[np.ndarray]:

@@ -251,12 +251,20 @@ def test_a_jerking_camera_on_noisy_low_texture_is_re_tried_from_the_capture(tmp_
     deg off whose robust msd was 1.3-2.5x the recent frames', and they were accepted (frame
     7 at 11.7 std). Such a fit is now re-tried from the capture's starts
     (``checks.FitChecks.doubtful``), which find the right minimum: every accepted row of
-    frames 1-20 is within 1 deg of the truth (before: up to 21.7 deg off)."""
+    frames 1-20 is within 1 deg of the truth (before: up to 21.7 deg off).
+
+    Frame 21's fit, 12 deg off, fits better than the truth (robust msd 62 against 76), so no
+    re-try can find the truth; it was written reanchored at 30 std. The prediction there was
+    10-15 deg uncertain (the jerks), so it does not pick the minimum, and the rival search now
+    runs (``aliases.unpinned``): the row states the minima it cannot exclude."""
     sc = draw(40, 51)
     assert (sc.width, sc.texture, sc.ground) == (160, "low", "rocks")
     seq, out = tmp_path / "seq", tmp_path / "out"
     render(sc, seq)
-    assert CliRunner().invoke(main, track_command(seq, out, 1)).exit_code in (0, 3)
+    r = CliRunner().invoke(main, track_command(seq, out, 1))
+    assert r.exit_code in (0, 3)
+    verdict = judge(sc, seq, out, r.exit_code, r.output)
+    assert "untrusted" not in verdict.failures, "\n".join(verdict.details)
     frames, motions, statuses = read_motion_csv(out / "motion.csv")
     truth = dict(zip(*read_motion_csv(seq / "groundtruth_motion.csv")[:2]))
     off = {int(f): np.degrees(np.linalg.norm(so3_log((se3_inv(truth[f]) @ m)[:3, :3])))
