@@ -100,8 +100,7 @@ class Odometry:
         self.options = options or TrackOptions()
         self.mask = mask
         self._plane0 = plane
-        self._plane = PlaneTracker(plane, mounting,
-                                   keep_initial_tilt=self.options.keep_initial_tilt)
+        self._plane = PlaneTracker(plane, mounting, keep_initial_tilt=self.options.keep_initial_tilt)
         self._key: Keyframe | None = first_keyframe
         self._world_from_prev = np.eye(4)
         self._cur_from_key_prev = np.eye(4)
@@ -298,8 +297,7 @@ class Odometry:
         self._handed_over, self._gap_variance = None, np.zeros(6)
         motion = motion_change(prev_from_cur, np.eye(4))
         if not refuted:
-            cov = cov + np.diag(self._unforeseen(motion, np.sqrt(np.clip(np.diag(cov), 0.0, None)),
-                                                 index))
+            cov = cov + np.diag(self._unforeseen(motion, np.sqrt(np.clip(np.diag(cov), 0.0, None)), index))
         # the next motion against this keyframe inherits the doubt (a re-anchor's does not)
         doubt = pose_doubt(key, pyr, est, self._prior(index), partial(self._motion_to, key),
                            prev_from_cur, rivals, self.options.estimator)
@@ -329,8 +327,7 @@ class Odometry:
                            est.points, status, std * np.sqrt(widen), cov * widen, self._key.index,
                            est.gain, est.bias, gap=gap)
 
-    def _lost(self, index: int, timestamp: float, reason: str,
-              est: Estimate | None = None) -> FrameResult:
+    def _lost(self, index: int, timestamp: float, reason: str, est: Estimate | None = None) -> FrameResult:
         """The prediction, or the feature hypothesis where it contradicts it
         (:mod:`monovo_cli.core.recovery.lost_frames`)."""
         predicted = self._predicted
@@ -381,10 +378,12 @@ class Odometry:
             or off_the_ground(self.camera, self.region, key, est.cur_from_key)
 
     def _settle_plane(self, index: int, pyr: list[np.ndarray], est: Estimate) -> Estimate:
-        """PlaneTracker.test; a corrected plane's keyframe is kept if its estimate passes, from
-        the top level if level 2's fails (``est``, fitted over the old plane, can be far off)."""
+        """PlaneTracker.test (with the keyframe gradients' noise factor); a corrected plane's
+        keyframe is kept if its estimate passes, from the top level if level 2's fails (``est``,
+        fitted over the old plane, can be far off)."""
+        f = self._motion_cov.measure_noise(self._key.levels[0], self._key.plane, pyr[0], est, keep=False)
         found = self._plane.test(index, self._key, self._key_image, pyr, est, self.camera,
-                                 self.region, self.options, self.mask)
+                                 self.region, self.options, self.mask, f)
         new = None if found is None else self._checks().refit(found[0], pyr, found[1], est)
         if new is None:
             return est

@@ -280,10 +280,31 @@ def keyframe_plane(carried: PlaneBelief, *, measured: PlaneBelief | None = None,
     return fuse([carried] + [b for b in (measured, prior) if b is not None])
 
 
+def carried_map(plane: Plane, covariance: np.ndarray, cur_from_key: np.ndarray, twist: np.ndarray,
+                sensitivity: np.ndarray | None, measured: PlaneBelief | None, prior: PlaneBelief,
+                distance_change: float, tilt_change: float) -> tuple[PlaneBelief, PlaneBelief]:
+    """``(carried, MAP)``: the keyframe ``plane`` (chart ``covariance``) carried by
+    ``cur_from_key`` (twist covariance ``twist``, :func:`propagated_plane`) and the new
+    keyframe's plane from it, ``measured`` and ``prior`` (:func:`keyframe_plane`)."""
+    carried = propagated_plane(plane, covariance, cur_from_key, twist, sensitivity)
+    return carried, keyframe_plane(carried, measured=measured, prior=prior,
+                                   distance_change=distance_change, tilt_change=tilt_change)
+
+
 def process_noise(distance_change: float, tilt_change: float) -> np.ndarray:
     """(3, 3) chart covariance of the carried plane's process noise: std ``distance_change``
     (m) on the distance and ``tilt_change`` (rad) on each tilt."""
     return np.diag([distance_change ** 2, tilt_change ** 2, tilt_change ** 2])
+
+
+def widened(belief: PlaneBelief, factor: float) -> PlaneBelief:
+    """``belief`` with its std multiplied by ``factor`` (its information divided by the
+    square), its mean kept: a measurement whose information counted noise as texture."""
+    if factor == 1.0:
+        return belief
+    scale = 1.0 / factor ** 2
+    return PlaneBelief(belief.plane, belief.information * scale,
+                       None if belief.vector is None else belief.eta * scale)
 
 
 def transported(belief: PlaneBelief, b_from_a: np.ndarray) -> PlaneBelief:

@@ -119,6 +119,24 @@ class MotionCovariance:
         self._sens_of: tuple[Estimate, np.ndarray] | None = None  # (estimate, its sensitivity)
         self._noise_of: tuple[KeyLevel, float] | None = None  # (level, its noise_factor)
 
+    def measure_noise(self, level: KeyLevel, plane: Plane, image: np.ndarray, est: Estimate,
+                      keep: bool = True) -> float:
+        """The keyframe gradients' noise factor of ``level`` (on ``plane``,
+        :func:`~monovo_cli.core.estimator.gradient_noise.noise_factor`): the one kept for it,
+        or measured on ``image`` (at its resolution, ``est`` its fit) and, with ``keep``, kept
+        for the keyframe (the rows' std: measured on its first frame)."""
+        if self._noise_of is not None and self._noise_of[0] is level:
+            return self._noise_of[1]
+        f = noise_factor(level, plane, image, est.cur_from_key, est.weights)
+        if keep:
+            self._noise_of = level, f
+        return f
+
+    def noise_factor_of(self, level: KeyLevel) -> float:
+        """The keyframe gradients' noise factor measured on the first frame against ``level``
+        (:func:`~monovo_cli.core.estimator.gradient_noise.noise_factor`); 1 where none was."""
+        return 1.0 if self._noise_of is None or self._noise_of[0] is not level else self._noise_of[1]
+
     def sensitivity(self, est: Estimate, level: KeyLevel, plane: Plane) -> np.ndarray | None:
         """:func:`plane_sensitivity` of ``est`` (against the keyframe of finest level ``level``
         and ``plane``), worked out once per estimate; None without weights or normal matrix."""
@@ -146,10 +164,9 @@ class MotionCovariance:
         S = None if plane_covariance is None else self.sensitivity(est, level, plane)
         sens = np.zeros((6, 3)) if S is None else S
         D = sens - self._sens_prev
-        if image is not None and (self._noise_of is None or self._noise_of[0] is not level):
-            self._noise_of = level, noise_factor(level, plane, image, est.cur_from_key, est.weights)
-        noise = est.covariance * (1.0 if self._noise_of is None or self._noise_of[0] is not level
-                                  else self._noise_of[1] ** 2)
+        if image is not None:
+            self.measure_noise(level, plane, image, est)
+        noise = est.covariance * self.noise_factor_of(level) ** 2
         inner = noise + self._cov_prev
         if plane_covariance is not None:
             inner = inner + D @ plane_covariance @ D.T

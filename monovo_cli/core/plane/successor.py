@@ -63,7 +63,7 @@ def successor(key: Keyframe, pyr: list[np.ndarray], est: Estimate, tracker: Plan
             rebuilt = replace(key, levels=(lifted,) + key.levels[1:], terrain_grid=terrain_grid)
     plane, cov, gain, bias, link = tracker.successor(
         key, pyr[0], est, orthonormalize(est.cur_from_key), est.gain, est.bias, options.estimator,
-        motion_cov.sensitivity(est, key.levels[0], key.plane))
+        motion_cov.sensitivity(est, key.levels[0], key.plane), motion_cov.noise_factor_of(key.levels[0]))
     if recovering and cov is not None:
         cov = tracker.loosened(cov)
     return Successor(est, plane, cov, gain, bias, link, terrain_grid, rebuilt)

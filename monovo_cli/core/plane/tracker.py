@@ -61,6 +61,7 @@ from monovo_cli.core.plane.belief import (
     UNCONFIRMED_CHI2,
     PlaneBelief,
     PlaneLink,
+    carried_map,
     carrying_jacobian,
     default_sigmas,
     exact_covariance,
@@ -76,6 +77,7 @@ from monovo_cli.core.plane.belief import (
     tilt_std_deg,
     to_chart,
     transported,
+    widened,
     with_mount_departure,
 )
 from monovo_cli.core.plane.fit import refine_plane_and_motion
@@ -111,8 +113,7 @@ class PlaneTracker:
         prior = mounting_prior(self._reference, *self.sigmas)
         #: the mounting prior on a keyframe's ground: the declared mount with the bobbing's
         #: width, or frame 0's plane with the latent mean's uncertainty and the bobbing's
-        self.mounting = prior if not self.latent_mount else \
-            PlaneBelief(plane, 0.5 * prior.information)
+        self.mounting = prior if not self.latent_mount else PlaneBelief(plane, 0.5 * prior.information)
         if m.initial_std is None:
             self.covariance = exact_covariance(plane)
         else:
@@ -262,7 +263,7 @@ class PlaneTracker:
 
     def test(self, index: int, key: Keyframe, key_image: np.ndarray, pyramid: list[np.ndarray],
              est: Estimate, camera: PinholeCamera, region: tuple[int, int, int, int],
-             options: TrackOptions, mask: np.ndarray | None = None
+             options: TrackOptions, mask: np.ndarray | None = None, noise_factor: float = 1.0
              ) -> tuple[Keyframe, Estimate, np.ndarray] | None:
         """Test the keyframe's tilt on the current frame ``index`` (``pyramid``, estimate
         ``est``); on keyframe 0's first frames, record the verdict on init.yaml's tilt.
@@ -276,13 +277,14 @@ class PlaneTracker:
         whatever the chi-square: the tilt given is the mount's mean, or a guess, and frame
         0's own bobs. A later keyframe's unsettled plane the images confirm takes the
         measurement's tilt covariance (:attr:`covariance` shrinks). None unless the plane
-        was corrected; never for frame 0's with ``keep_initial_tilt``.
-        """
+        was corrected; never for frame 0's with ``keep_initial_tilt``. The normal's std is
+        ``noise_factor`` times the fit's (the keyframe gradients' noise, as in the rows' std)."""
         fit = refine_plane_and_motion(key.levels[0].points, pyramid[0], est.cur_from_key,
                                       key.plane, gain=est.gain, bias=est.bias,
                                       options=options.estimator, iterations=4)
         if fit.measured is None:
             return None
+        fit = replace(fit, measured=widened(fit.measured, noise_factor))
         chi2 = tilt_chi2(fit.measured, key.plane)
         if self._watching(key):  # the tilt is kept whatever they say
             if chi2 >= UNCONFIRMED_CHI2:
@@ -415,32 +417,32 @@ class PlaneTracker:
         except (ValueError, np.linalg.LinAlgError):
             return key_plane.in_frame(cur_from_key), None
 
-    def successor(self, key: Keyframe, image: np.ndarray, est: Estimate,
-                  cur_from_key: np.ndarray, gain: float, bias: float,
-                  options: EstimatorOptions, sensitivity: np.ndarray | None = None
+    def successor(self, key: Keyframe, image: np.ndarray, est: Estimate, cur_from_key: np.ndarray,
+                  gain: float, bias: float, options: EstimatorOptions,
+                  sensitivity: np.ndarray | None = None, noise_factor: float = 1.0
                   ) -> tuple[Plane, np.ndarray | None, float, float, PlaneLink | None]:
         """The plane of a keyframe anchored on the current frame (finest level ``image``,
         ``cur_from_key`` its pose): ``(plane in its camera, covariance, gain, bias, link)``,
         the MAP of the plane carried by the motion, the joint refinement's normal and the
         mounting prior (with :attr:`distance_change` and TILT_CHANGE_DEG of process noise on the
         carried plane; ``sensitivity`` (6, 3) ``est``'s plane sensitivity, through which the
-        keyframe plane's error reaches the carried one, :func:`carrying_jacobian`); the
-        brightness model is the refinement's; ``link`` what smoothing ``key``'s plane in
-        hindsight needs (:class:`~monovo_cli.core.plane.belief.PlaneLink`).
-        If the beliefs cannot be combined the carried plane comes back with covariance None
-        and no link."""
+        keyframe plane's error reaches the carried one, :func:`carrying_jacobian`; the motion's
+        and the normal's std widened by ``noise_factor`` as in :meth:`test`); the brightness
+        model is the refinement's; ``link`` what smoothing ``key``'s plane in hindsight needs.
+        If the beliefs cannot be combined the carried plane comes back, covariance and link None."""
         fit = refine_plane_and_motion(key.levels[0].points, image, cur_from_key, key.plane,
                                       gain=gain, bias=bias, options=options, iterations=4)
-        measured = None if fit.measured is None else \
-            transported(fit.measured, orthonormalize(fit.cur_from_key))
-        distance_change = self.distance_change * key.plane.distance
-        tilt_change = np.radians(TILT_CHANGE_DEG)
+        pose = orthonormalize(fit.cur_from_key)
+        measured = [None if fit.measured is None else transported(widened(fit.measured, f), pose)
+                    for f in (1.0, noise_factor)]
+        distance_change, tilt_change = self.distance_change * key.plane.distance, np.radians(TILT_CHANGE_DEG)
         prior = self.mounting
-        try:
-            carried = propagated_plane(key.plane, self.covariance, cur_from_key, est.covariance,
-                                       sensitivity)
-            belief = keyframe_plane(carried, measured=measured, prior=prior,
-                                    distance_change=distance_change, tilt_change=tilt_change)
+        try:  # the MAP at the noise the keyframe's gradients allow, the report's calibration at
+            # the fits' own (so it counts no less model error than they leave): (carried, MAP)
+            raw, (carried, belief) = (carried_map(key.plane, self.covariance, cur_from_key,
+                                                  est.covariance * f ** 2, sensitivity, m, prior,
+                                                  distance_change, tilt_change)
+                                      for f, m in zip((1.0, noise_factor), measured))
             J = carrying_jacobian(propagation_jacobian(key.plane, cur_from_key)[1], sensitivity)
             predicted = carried.covariance + process_noise(distance_change, tilt_change)
             link = PlaneLink(self.covariance @ J.T @ np.linalg.inv(predicted),
@@ -454,8 +456,7 @@ class PlaneTracker:
         except (ValueError, np.linalg.LinAlgError):
             return key.plane.in_frame(cur_from_key), None, fit.gain, fit.bias, None
         pulled = 0.0 if self._report_distance is None else self._report_distance[1]
-        self.consistency.reanchored(carried, belief, prior, distance_change, measured,
-                                    carried_pull=J[0, 0] * pulled)
+        self.consistency.reanchored(*raw, prior, distance_change, measured[0], carried_pull=J[0, 0] * pulled)
         self._next_report_distance = self._reported_distance_variance(
             J[0, 0], float(predicted[0, 0]), float(belief.covariance[0, 0]), distance_change)
         return belief.plane, belief.covariance, fit.gain, fit.bias, link

@@ -21,6 +21,7 @@ from monovo_cli.core.plane.belief import (
     tilt_std_deg,
     to_chart,
     transported,
+    widened,
     with_mount_departure,
 )
 from monovo_cli.core.plane.tracker import Mounting
@@ -168,6 +169,22 @@ def test_keyframe_plane_adds_the_tilt_process_noise():
     assert pitch_deg(loose.plane) == pytest.approx(2.0 - 2.0 * 1.01 / 10.01, abs=2e-2)
     assert tilt_std_deg(loose.covariance) == pytest.approx(
         math.sqrt(1.0 / (1.0 / 1.01 + 1.0 / 9.0)), rel=1e-2)
+
+
+def test_a_widened_measurement_keeps_its_mean_and_weighs_its_std_times_the_factor():
+    # the measurement of the test above (tilt 1 = 0.01 rad, variance 1e-4, nothing on d), its
+    # std 3x: variance 9e-4, so against the prior's 1e-4 the gain is 1e-4 / 1e-3 = 0.1 -> 0.001
+    ref = Plane(N0, 1.5)
+    a = PlaneBelief.from_covariance(ref, np.diag([4e-4, 1e-4, 1e-4]))
+    info = np.zeros((3, 3))
+    info[1, 1] = 1e4
+    b = PlaneBelief(ref, info, np.array([0.0, 1e4 * 0.01, 0.0]))
+    w = widened(b, 3.0)
+    assert np.allclose(w.information, b.information / 9.0)
+    assert np.linalg.solve(w.information[1:2, 1:2], w.eta[1:2]) == pytest.approx([0.01], rel=1e-12)
+    assert to_chart(ref, fuse([a, w]).plane)[1] == pytest.approx(0.001, abs=1e-7)
+    assert to_chart(ref, fuse([a, b]).plane)[1] == pytest.approx(0.005, abs=5e-7)
+    assert widened(b, 1.0) is b
 
 
 def test_transported_keeps_a_missing_distance_missing():
