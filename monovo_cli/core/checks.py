@@ -21,10 +21,10 @@ from functools import partial
 
 import numpy as np
 
-from monovo_cli.core.estimator.estimate import Estimate, coarse_search, estimate_motion
+from monovo_cli.core.estimator.estimate import Estimate, coarse_search, estimate_motion, residuals
 from monovo_cli.core.estimator.ground import in_front, rectangle_corners
-from monovo_cli.core.estimator.robust import inlier_fraction
-from monovo_cli.core.frame_std import robust_msd
+from monovo_cli.core.estimator.robust import inlier_fraction, mad_scale
+from monovo_cli.core.frame_std import UNFORESEEN_COVER, robust_msd
 from monovo_cli.core.keyframe import Keyframe, footprint
 from monovo_cli.core.options import TrackOptions
 from monovo_cli.core.recovery.lost_frames import LostFrameRecovery
@@ -114,6 +114,20 @@ class FitChecks:
         return coarse_search(key.levels[top], extend_pyramid(pyr, top + 1)[top], guess,
                              options=self.options.estimator,
                              noise_sigma=self.sigma, gain=gain, bias=bias)
+
+    def start_msd(self, key: Keyframe, pyr: list[np.ndarray], start: np.ndarray, est: Estimate,
+                  reach: np.ndarray) -> float | None:
+        """The robust msd (squared MAD) of ``key``'s finest points in ``pyr`` at the pose a
+        fit ``est`` started from (``start``, 4x4 ``cur_from_key``; ``est``'s brightness), where
+        the fit went beyond UNFORESEEN_COVER times ``reach`` (6,: m, rad, the prediction's std)
+        from it in translation or rotation; None where it did not."""
+        move = est.cur_from_key @ se3_inv(start)
+        t, w = np.linalg.norm(move[:3, 3]), np.linalg.norm(so3_log(move[:3, :3]))
+        if t <= UNFORESEEN_COVER * np.linalg.norm(reach[:3]) and \
+                w <= UNFORESEEN_COVER * np.linalg.norm(reach[3:]):
+            return None
+        r, valid = residuals(key.levels[0], pyr[0], start, est.gain, est.bias)
+        return mad_scale(r, valid) ** 2 if valid.any() else None
 
     def score(self, est: Estimate) -> float:
         """Share of the in-view points that agree with the estimate within the noise."""

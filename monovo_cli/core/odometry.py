@@ -247,8 +247,9 @@ class Odometry:
         widen = self._checks().excess(est, key)  # above 1: beyond its level, and kept
         found = rivals(key, pyr, est, self.options.estimator) if widen > 1.0 \
             or unpinned(self._prior(index), key.plane.distance) else []
+        start = partial(self._checks().start_msd, key, pyr, guess, est, self._prior(index))
         return self._accept(index, timestamp, image, pyr, est, captured=captured,
-                            refuted=refuted(from_prediction, est, captured), rivals=found, widen=widen)
+                            refuted=refuted(from_prediction, est, captured, start), rivals=found, widen=widen)
 
     def skip(self, index: int, timestamp: float) -> FrameResult:
         """Frame ``index`` has no usable image: record it as lost at the prediction."""

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from monovo_cli.core.checks import off_the_ground
+from monovo_cli.core.frame_std import refuted
 from monovo_cli.geometry.camera import PinholeCamera
 from monovo_cli.geometry.lie import make_pose, so3_exp
 from monovo_cli.geometry.plane import Plane, normal_from_pitch_roll, pitch_roll_deg
@@ -45,3 +46,28 @@ def test_a_pose_below_the_ground_is_no_fit():
     below = make_pose(np.eye(3), -1.6 * n)
     assert KEY.plane.in_frame(below).distance == pytest.approx(-0.1)
     assert "ground" in off_the_ground(CAMERA, REGION, KEY, below)
+
+
+def _fit(robust: float) -> SimpleNamespace:
+    """A converged fit whose robust msd (squared MAD scale) is ``robust``."""
+    return SimpleNamespace(msd=robust, scale=robust ** 0.5, converged=True)
+
+
+def test_a_fit_that_left_the_prediction_refutes_it_only_where_the_prediction_fits_worse():
+    # soak seed 42's scenario 149, frame 2: the fit went 0.6 m and 10 deg from a 3 cm step
+    # prediction and leaves a robust msd of 58.5 where the prediction's own pose leaves 53.3
+    est = _fit(58.5)
+    asked = []
+
+    def at(value):
+        return lambda: asked.append(value) or value
+
+    assert not refuted(est, est, False, at(53.3))
+    assert refuted(est, est, False, at(2.5 * 58.5))  # a real change: the prediction misfits
+    assert refuted(est, est, False, at(None))  # the fit stayed within the prediction's reach
+    assert refuted(est, est, False)  # not asked
+    assert not refuted(None, est, False, at(53.3))  # no fit from the prediction: nothing refuted
+    assert asked == [53.3, 2.5 * 58.5, None]
+    # a captured fit is judged by the fit from the prediction, as before; the start not asked
+    assert refuted(_fit(3.0 * 58.5), est, True, at(1.0)) and not refuted(_fit(58.5), est, True, at(1.0))
+    assert asked == [53.3, 2.5 * 58.5, None]
