@@ -408,8 +408,7 @@ class PlaneTracker:
         with the same process noise; the carried plane alone (covariance None) where they
         cannot be fused."""
         try:
-            carried = propagated_plane(key_plane, self.covariance, cur_from_key, twist,
-                                       sensitivity)
+            carried = propagated_plane(key_plane, self.covariance, cur_from_key, twist, sensitivity)
             fused = keyframe_plane(carried, prior=self.mounting,
                                    distance_change=self.distance_change * key_plane.distance,
                                    tilt_change=np.radians(TILT_CHANGE_DEG))
@@ -428,21 +427,21 @@ class PlaneTracker:
         carried plane; ``sensitivity`` (6, 3) ``est``'s plane sensitivity, through which the
         keyframe plane's error reaches the carried one, :func:`carrying_jacobian`; the motion's
         and the normal's std widened by ``noise_factor`` as in :meth:`test`); the brightness
-        model is the refinement's; ``link`` what smoothing ``key``'s plane in hindsight needs.
-        If the beliefs cannot be combined the carried plane comes back, covariance and link None."""
+        model is the refinement's; ``link`` what smoothing ``key``'s plane in hindsight needs
+        (the carried plane, covariance and link None, where the beliefs cannot be combined)."""
         fit = refine_plane_and_motion(key.levels[0].points, image, cur_from_key, key.plane,
                                       gain=gain, bias=bias, options=options, iterations=4)
         pose = orthonormalize(fit.cur_from_key)
-        measured = [None if fit.measured is None else transported(widened(fit.measured, f), pose)
-                    for f in (1.0, noise_factor)]
+        measured = None if fit.measured is None else transported(fit.measured, pose)
         distance_change, tilt_change = self.distance_change * key.plane.distance, np.radians(TILT_CHANGE_DEG)
-        prior = self.mounting
+        def fused(f: float) -> tuple[PlaneBelief, PlaneBelief]:
+            m = measured if f == 1.0 or measured is None else transported(widened(fit.measured, f), pose)
+            return carried_map(key.plane, self.covariance, cur_from_key, est.covariance * f ** 2,
+                               sensitivity, m, self.mounting, distance_change, tilt_change)
         try:  # the MAP at the noise the keyframe's gradients allow, the report's calibration at
             # the fits' own (so it counts no less model error than they leave): (carried, MAP)
-            raw, (carried, belief) = (carried_map(key.plane, self.covariance, cur_from_key,
-                                                  est.covariance * f ** 2, sensitivity, m, prior,
-                                                  distance_change, tilt_change)
-                                      for f, m in zip((1.0, noise_factor), measured))
+            raw = fused(1.0)
+            carried, belief = raw if noise_factor == 1.0 else fused(noise_factor)
             J = carrying_jacobian(propagation_jacobian(key.plane, cur_from_key)[1], sensitivity)
             predicted = carried.covariance + process_noise(distance_change, tilt_change)
             link = PlaneLink(self.covariance @ J.T @ np.linalg.inv(predicted),
@@ -456,7 +455,8 @@ class PlaneTracker:
         except (ValueError, np.linalg.LinAlgError):
             return key.plane.in_frame(cur_from_key), None, fit.gain, fit.bias, None
         pulled = 0.0 if self._report_distance is None else self._report_distance[1]
-        self.consistency.reanchored(*raw, prior, distance_change, measured[0], carried_pull=J[0, 0] * pulled)
+        self.consistency.reanchored(*raw, self.mounting, distance_change, measured,
+                                    carried_pull=J[0, 0] * pulled)
         self._next_report_distance = self._reported_distance_variance(
             J[0, 0], float(predicted[0, 0]), float(belief.covariance[0, 0]), distance_change)
         return belief.plane, belief.covariance, fit.gain, fit.bias, link
